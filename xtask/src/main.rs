@@ -1,0 +1,74 @@
+//! `cargo xtask`: the project's commands.
+//!
+//! `demo` runs the main job, `test` runs every test, `fw` builds the firmware, `qemu` boots it,
+//! `bench` measures. Each installs what it needs first (see `install`).
+
+mod bench;
+mod demo;
+mod fw;
+mod fwlint;
+mod install;
+mod qemu;
+mod test;
+
+use std::path::PathBuf;
+
+
+use clap::{Parser, Subcommand};
+
+#[derive(Debug, Parser)]
+#[command(name = "cargo xtask", about = "ALMC UBC project commands")]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Debug, Subcommand)]
+enum Cmd {
+    /// Run the main demonstration: the firmware in QEMU against the emulated lower board.
+    Demo,
+    /// Run every test: lint, host tests, firmware build, QEMU end-to-end tests, fuzz smoke runs.
+    Test(test::TestArgs),
+    /// Build the firmware; the last line of output is the ELF path.
+    Fw {
+        /// Board to build for.
+        #[arg(long, default_value = "qemu_virt")]
+        board: String,
+        /// Debug build instead of release.
+        #[arg(long)]
+        debug: bool,
+    },
+    /// Boot the firmware in QEMU with its UARTs attached to sockets.
+    Qemu(qemu::QemuArgs),
+    /// Run the benchmarks and print their figures.
+    Bench(bench::BenchArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Cmd::Demo => demo::run(),
+        Cmd::Test(args) => test::run(args),
+        Cmd::Fw { board, debug } => fw::build(&board, !debug).map(|_| ()),
+        Cmd::Qemu(args) => qemu::run(args),
+        Cmd::Bench(args) => bench::run(args),
+    };
+    if let Err(err) = result {
+        eprintln!("xtask: error: {err:#}");
+        std::process::exit(1);
+    }
+}
+
+/// The workspace root (the parent of xtask/).
+pub fn workspace_root() -> PathBuf {
+    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    manifest
+        .parent()
+        .map(PathBuf::from)
+        .unwrap_or(manifest)
+}
+
+/// Prints a stage heading.
+pub fn stage(name: &str) {
+    println!("\n==> {name}");
+}

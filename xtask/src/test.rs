@@ -1,0 +1,261 @@
+//! `cargo xtask test`: every check the project has, in the order that fails fastest.
+//!
+//! Stages: formatting, clippy (host and firmware), the firmware build, host tests (which include
+//! the QEMU end-to-end tests, given the firmware ELF through `UBC_FW_ELF`), and short fuzz runs
+//! when a nightly toolchain is installed.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+
+use crate::{fw, fwlint, install, stage, workspace_root};
+
+#[derive(Debug, clap::Args)]
+pub struct TestArgs {
+    /// Skip the firmware build and the QEMU end-to-end tests.
+    #[arg(long)]
+    no_qemu: bool,
+    /// Skip rustfmt and clippy.
+    #[arg(long)]
+    no_lint: bool,
+    /// Seconds each fuzz target runs for (0 skips fuzzing).
+    #[arg(long, default_value_t = 20)]
+    fuzz_seconds: u32,
+}
+
+/// Outcome of one stage.
+struct StageResult {
+    name: &'static str,
+    ok: bool,
+    seconds: f64,
+    note: String,
+}
+
+pub fn run(args: TestArgs) -> Result<()> {
+    let mut results: Vec<StageResult> = Vec::new();
+    let mut totals = TestCounts::default();
+
+    let mut record = |name: &'static str, f: &mut dyn FnMut() -> Result<String>| {
+        stage(name);
+        let start = Instant::now();
+        let outcome = f();
+        let seconds = start.elapsed().as_secs_f64();
+        let (ok, note) = match outcome {
+            Ok(note) => (true, note),
+            Err(err) => {
+                eprintln!("xtask: stage `{name}` failed: {err:#}");
+                (false, format!("{err:#}"))
+            }
+        };
+        results.push(StageResult { name, ok, seconds, note });
+        ok
+    };
+
+    if !args.no_lint {
+        record("rustfmt", &mut || {
+            cargo(&["fmt", "--all", "--", "--check"])?;
+            cargo(&["fmt", "--manifest-path", "ubc-app/Cargo.toml", "--", "--check"])?;
+            Ok(String::new())
+        });
+        record("clippy (host)", &mut || {
+            cargo(&["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"])?;
+            Ok(String::new())
+        });
+    }
+
+    let mut elf = None;
+    if !args.no_qemu {
+        record("firmware build (qemu_virt)", &mut || {
+            install::ensure_qemu()?;
+            let path = fw::build("qemu_virt", true)?;
+            let note = path.display().to_string();
+            elf = Some(path);
+            Ok(note)
+        });
+        if !args.no_lint {
+            record("clippy (firmware)", &mut || fwlint::clippy("qemu_virt"));
+        }
+    }
+
+    record("host and QEMU tests", &mut || {
+        let mut cmd = Command::new(cargo_bin());
+        cmd.args(["test", "--workspace"]);
+        match (&elf, args.no_qemu) {
+            (Some(path), _) => {
+                cmd.env("UBC_FW_ELF", path);
+            }
+            (None, true) => {
+                cmd.env("UBC_SKIP_QEMU", "1");
+            }
+            (None, false) => bail!("the firmware did not build, so the QEMU tests cannot run"),
+        }
+        let counts = run_counting(&mut cmd)?;
+        totals.add(&counts);
+        Ok(format!("{} passed, {} failed, {} ignored", counts.passed, counts.failed, counts.ignored))
+    });
+
+    if args.fuzz_seconds > 0 {
+        record("fuzz smoke runs", &mut || fuzz_smoke(args.fuzz_seconds));
+    }
+
+    println!("\n==> summary");
+    for r in &results {
+        println!(
+            "  {:<28} {:>4}  {:>7.1}s  {}",
+            r.name,
+            if r.ok { "ok" } else { "FAIL" },
+            r.seconds,
+            r.note
+        );
+    }
+    let failed: Vec<&str> = results.iter().filter(|r| !r.ok).map(|r| r.name).collect();
+    println!(
+        "tests: {} passed, {} failed",
+        totals.passed,
+        totals.failed
+    );
+    if !failed.is_empty() {
+        bail!("failed stages: {}", failed.join(", "));
+    }
+    Ok(())
+}
+
+fn cargo_bin() -> String {
+    std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string())
+}
+
+/// Runs cargo in the workspace root, failing on a non-zero exit.
+pub fn cargo(args: &[&str]) -> Result<()> {
+    let status = Command::new(cargo_bin())
+        .args(args)
+        .current_dir(workspace_root())
+        .status()
+        .with_context(|| format!("running cargo {}", args.join(" ")))?;
+    if !status.success() {
+        bail!("cargo {} failed ({status})", args.join(" "));
+    }
+    Ok(())
+}
+
+#[derive(Debug, Default)]
+struct TestCounts {
+    passed: u64,
+    failed: u64,
+    ignored: u64,
+}
+
+impl TestCounts {
+    fn add(&mut self, other: &TestCounts) {
+        self.passed += other.passed;
+        self.failed += other.failed;
+        self.ignored += other.ignored;
+    }
+
+    /// Reads libtest's `test result: ok. 12 passed; 0 failed; 1 ignored; ...` line.
+    fn parse_line(line: &str) -> Option<TestCounts> {
+        let rest = line.trim().strip_prefix("test result: ")?;
+        let mut counts = TestCounts::default();
+        for part in rest.split(';') {
+            let mut words = part.split_whitespace().rev();
+            let label = words.next()?;
+            let number = words.next().and_then(|n| n.parse::<u64>().ok());
+            match (label, number) {
+                ("passed", Some(n)) => counts.passed = n,
+                ("failed", Some(n)) => counts.failed = n,
+                ("ignored", Some(n)) => counts.ignored = n,
+                _ => {}
+            }
+        }
+        Some(counts)
+    }
+}
+
+/// Runs a `cargo test` command, passing its output through and adding up its result lines.
+fn run_counting(cmd: &mut Command) -> Result<TestCounts> {
+    cmd.current_dir(workspace_root()).stdout(Stdio::piped());
+    let mut child = cmd.spawn().context("starting cargo test")?;
+    let stdout = child.stdout.take().context("cargo test stdout")?;
+    let mut counts = TestCounts::default();
+    for line in BufReader::new(stdout).lines() {
+        let line = line.context("reading cargo test output")?;
+        println!("{line}");
+        if let Some(c) = TestCounts::parse_line(&line) {
+            counts.add(&c);
+        }
+    }
+    let status = child.wait().context("waiting for cargo test")?;
+    if !status.success() {
+        bail!("cargo test failed ({status}): {} failed", counts.failed);
+    }
+    Ok(counts)
+}
+
+/// Runs each fuzz target for a few seconds with cargo-fuzz on the nightly toolchain.
+fn fuzz_smoke(seconds: u32) -> Result<String> {
+    let nightly = Command::new("rustup")
+        .args(["run", "nightly", "rustc", "--version"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !nightly {
+        println!("no nightly toolchain installed: fuzz smoke runs skipped");
+        return Ok("skipped: no nightly toolchain".into());
+    }
+    let have_fuzz = Command::new(cargo_bin())
+        .args(["fuzz", "--version"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !have_fuzz {
+        println!("installing cargo-fuzz");
+        cargo(&["install", "--locked", "cargo-fuzz"])?;
+    }
+    let targets = fuzz_targets()?;
+    for target in &targets {
+        let max_time = format!("-max_total_time={seconds}");
+        let status = Command::new("cargo")
+            .args(["+nightly", "fuzz", "run", target, "--", &max_time, "-max_len=512"])
+            .current_dir(workspace_root())
+            .env_remove("RUSTC")
+            .env_remove("RUSTDOC")
+            .env_remove("CARGO")
+            .env_remove("RUSTUP_TOOLCHAIN")
+            .status()
+            .with_context(|| format!("running fuzz target {target}"))?;
+        if !status.success() {
+            bail!("fuzz target {target} failed ({status}); see fuzz/artifacts/{target}");
+        }
+    }
+    Ok(format!("{} targets x {seconds}s", targets.len()))
+}
+
+fn fuzz_targets() -> Result<Vec<String>> {
+    let dir = workspace_root().join("fuzz/fuzz_targets");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .with_context(|| format!("reading {}", dir.display()))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let p = e.path();
+            (p.extension()? == "rs").then(|| p.file_stem()?.to_str().map(String::from))?
+        })
+        .collect();
+    names.sort();
+    Ok(names)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TestCounts;
+
+    #[test]
+    fn parses_libtest_result_line() {
+        let c = TestCounts::parse_line(
+            "test result: ok. 12 passed; 3 failed; 1 ignored; 0 measured; 0 filtered out; finished in 0.01s",
+        )
+        .unwrap();
+        assert_eq!((c.passed, c.failed, c.ignored), (12, 3, 1));
+        assert!(TestCounts::parse_line("running 3 tests").is_none());
+    }
+}
