@@ -1,0 +1,231 @@
+//! Authentication of ground-station commands: SipHash-2-4 keyed MAC and replay guard.
+//!
+//! The tag is SipHash-2-4 (64-bit output) under the testbed's 128-bit key, over the raw
+//! frame from the header byte to the end of the payload, so the counter, destination, tag
+//! and payload are all covered. The key is provisioned in the LBC EEPROM user registers
+//! 0x38..=0x3F (eight 16-bit words, register 0x38 holds key bytes 0 and 1, low byte first)
+//! and never sent on air.
+
+use crate::wire::{EncodeError, Frame, AUTH_TAG_LEN, CRC_LEN, MAX_RAW};
+use core::hash::Hasher;
+use siphasher::sip::SipHasher24;
+
+/// First EEPROM user register holding the key.
+pub const KEY_EEPROM_FIRST: u8 = 0x38;
+/// Last EEPROM user register holding the key.
+pub const KEY_EEPROM_LAST: u8 = 0x3F;
+
+/// The testbed's 128-bit command key.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Key([u8; 16]);
+
+impl core::fmt::Debug for Key {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("Key(..)")
+    }
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for Key {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "Key(..)")
+    }
+}
+
+impl Key {
+    /// A key from 16 bytes.
+    pub const fn new(bytes: [u8; 16]) -> Self {
+        Self(bytes)
+    }
+
+    /// A key from EEPROM registers 0x38..=0x3F, in register order.
+    pub fn from_eeprom_words(words: [u16; 8]) -> Self {
+        let mut b = [0u8; 16];
+        for (chunk, w) in b.chunks_exact_mut(2).zip(words) {
+            chunk.copy_from_slice(&w.to_le_bytes());
+        }
+        Self(b)
+    }
+
+    /// The eight words to store in EEPROM registers 0x38..=0x3F.
+    pub fn to_eeprom_words(&self) -> [u16; 8] {
+        let mut w = [0u16; 8];
+        for (i, c) in self.0.chunks_exact(2).enumerate() {
+            w[i] = u16::from_le_bytes([c[0], c[1]]);
+        }
+        w
+    }
+
+    /// SipHash-2-4 of `data` under this key, little-endian.
+    pub fn tag(&self, data: &[u8]) -> [u8; AUTH_TAG_LEN] {
+        let mut h = SipHasher24::new_with_key(&self.0);
+        h.write(data);
+        h.finish().to_le_bytes()
+    }
+}
+
+/// Tag of an [`Frame::AuthCommand`] (its own `mac` field is ignored); `None` for other kinds.
+pub fn command_tag(key: &Key, frame: &Frame) -> Result<Option<[u8; AUTH_TAG_LEN]>, EncodeError> {
+    if !matches!(frame, Frame::AuthCommand { .. }) {
+        return Ok(None);
+    }
+    let mut raw = [0u8; MAX_RAW];
+    let n = frame.emit_raw(&mut raw)?;
+    let covered = raw
+        .get(..n.saturating_sub(AUTH_TAG_LEN + CRC_LEN))
+        .ok_or(EncodeError::BufferTooSmall)?;
+    Ok(Some(key.tag(covered)))
+}
+
+/// Set the `mac` field of an authenticated command.
+pub fn sign(key: &Key, frame: &mut Frame) -> Result<(), EncodeError> {
+    let tag = command_tag(key, frame)?;
+    if let (Some(t), Frame::AuthCommand { mac, .. }) = (tag, frame) {
+        *mac = t;
+    }
+    Ok(())
+}
+
+/// Check the `mac` field of an authenticated command in constant time.
+pub fn verify(key: &Key, frame: &Frame) -> bool {
+    match (command_tag(key, frame), frame) {
+        (Ok(Some(t)), Frame::AuthCommand { mac, .. }) => {
+            t.iter()
+                .zip(mac.iter())
+                .fold(0u8, |acc, (a, b)| acc | (a ^ b))
+                == 0
+        }
+        _ => false,
+    }
+}
+
+/// Verdict of the replay guard on a counter whose MAC was valid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Freshness {
+    /// Higher than any accepted counter: execute.
+    Fresh,
+    /// Equal to the last accepted counter: a retransmission; answer again, do not execute.
+    Repeat,
+    /// Lower than the last accepted counter: a replay; reject.
+    Replay,
+}
+
+/// Highest accepted command counter. Persist [`ReplayGuard::last`] (e.g. in EEPROM) to keep
+/// replay protection across restarts.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ReplayGuard {
+    last: Option<u32>,
+}
+
+impl ReplayGuard {
+    /// A guard that accepts any first counter.
+    pub const fn new() -> Self {
+        Self { last: None }
+    }
+
+    /// A guard restored from a persisted counter.
+    pub const fn restore(last: u32) -> Self {
+        Self { last: Some(last) }
+    }
+
+    /// Highest accepted counter.
+    pub const fn last(&self) -> Option<u32> {
+        self.last
+    }
+
+    /// Classify `counter` without accepting it.
+    pub fn check(&self, counter: u32) -> Freshness {
+        match self.last {
+            None => Freshness::Fresh,
+            Some(l) if counter > l => Freshness::Fresh,
+            Some(l) if counter == l => Freshness::Repeat,
+            Some(_) => Freshness::Replay,
+        }
+    }
+
+    /// Record `counter` as executed.
+    pub fn accept(&mut self, counter: u32) {
+        self.last = Some(counter);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::addr::{Address, CarId};
+    use crate::wire::Payload;
+
+    /// SipHash-2-4 reference vector (64-bit output, key 00..0f, empty message): 0x726fdb47dd0e0e31.
+    #[test]
+    fn siphash_reference_vector() {
+        let mut k = [0u8; 16];
+        for (i, b) in k.iter_mut().enumerate() {
+            *b = i as u8;
+        }
+        let key = Key::new(k);
+        assert_eq!(u64::from_le_bytes(key.tag(&[])), 0x726f_db47_dd0e_0e31);
+        let mut msg = [0u8; 15];
+        for (i, b) in msg.iter_mut().enumerate() {
+            *b = i as u8;
+        }
+        assert_eq!(u64::from_le_bytes(key.tag(&msg)), 0xa129_ca61_49be_45e5);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn eeprom_words_encode_decode(bytes in proptest::prelude::any::<[u8; 16]>()) {
+            let key = Key::new(bytes);
+            proptest::prop_assert_eq!(Key::from_eeprom_words(key.to_eeprom_words()), key);
+        }
+    }
+
+    #[test]
+    fn eeprom_words_round_trip() {
+        let key = Key::new(*b"0123456789abcdef");
+        let w = key.to_eeprom_words();
+        assert_eq!(w[0], u16::from_le_bytes(*b"01"));
+        assert_eq!(Key::from_eeprom_words(w), key);
+    }
+
+    fn cmd(counter: u32) -> Frame {
+        Frame::AuthCommand {
+            dst: Address::Car(CarId::new(4).unwrap()),
+            counter,
+            tag: 1,
+            payload: Payload::from_slice(&[9, 9]).unwrap(),
+            mac: [0; 8],
+        }
+    }
+
+    #[test]
+    fn sign_verify_and_tamper() {
+        let key = Key::new([7; 16]);
+        let mut f = cmd(10);
+        sign(&key, &mut f).unwrap();
+        assert!(verify(&key, &f));
+        assert!(!verify(&Key::new([8; 16]), &f));
+        if let Frame::AuthCommand {
+            counter, payload, ..
+        } = &mut f
+        {
+            *counter = 11;
+            assert!(!verify(&key, &cmd(11)));
+            *counter = 10;
+            payload[0] = 8;
+        }
+        assert!(!verify(&key, &f));
+    }
+
+    #[test]
+    fn replay_guard() {
+        let mut g = ReplayGuard::new();
+        assert_eq!(g.check(5), Freshness::Fresh);
+        g.accept(5);
+        assert_eq!(g.check(5), Freshness::Repeat);
+        assert_eq!(g.check(4), Freshness::Replay);
+        assert_eq!(g.check(6), Freshness::Fresh);
+        assert_eq!(ReplayGuard::restore(9).check(9), Freshness::Repeat);
+    }
+}

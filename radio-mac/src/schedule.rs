@@ -1,0 +1,447 @@
+//! Transmit schedule for the periodic state broadcast, above the radio's own CSMA.
+//!
+//! Time is cut into 30 Hz frames of [`FRAME_US`] (the overhead tracking period) and each frame
+//! into [`SLOTS`] slots of [`SLOT_US`]. A car sends its state at the start of its slot
+//! (default `(id - 1) % SLOTS`). A 16-byte state frame occupies about 1.7 ms of air, which
+//! leaves a guard of about 0.35 ms per slot.
+//!
+//! The frame boundaries come from one of two time bases:
+//! * [`TimeBase::External`]: the application calls [`Schedule::external_tick`] on a shared
+//!   event, e.g. the arrival of each overhead tracking frame (all cars hear it at once).
+//! * [`TimeBase::FollowLowest`]: each car aligns to the state broadcasts of the lowest car ID
+//!   it hears, subtracting the known pipeline latency of a state frame; the lowest car
+//!   free-runs. This needs no extra bytes on air.
+
+use crate::addr::CarId;
+
+/// Frame period: one overhead tracking period (30 Hz), in microseconds.
+pub const FRAME_US: u32 = 33_333;
+/// Slots per frame.
+pub const SLOTS: u8 = 16;
+/// Slot length in microseconds.
+pub const SLOT_US: u32 = FRAME_US / SLOTS as u32;
+/// Default pipeline latency of a state frame, from the start of the UART write on the sender
+/// to its delimiter leaving the receiver's radio UART, for a Wi.232-like module at 115200 bps:
+/// 16 bytes in (1.39 ms) + inter-byte gap timeout (0.26 ms) + air (20 bytes, 1.74 ms)
+/// + 16 bytes out (1.39 ms).
+pub const DEFAULT_STATE_LATENCY_US: u32 = 4_774;
+
+/// A phase error above this, once locked, is an outlier (a late frame), in microseconds.
+pub const OUTLIER_US: u64 = 200;
+/// Consecutive outliers after which the phase jumps to the new estimate.
+pub const OUTLIERS_TO_JUMP: u8 = 4;
+
+/// Consecutive disagreeing frames after which a car with nobody to follow adopts their phase.
+pub const ROOT_YIELD: u8 = 8;
+
+/// Where the frame boundaries come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TimeBase {
+    /// Application ticks, e.g. overhead tracking frames.
+    External {
+        /// Offset from a tick to the start of slot 0, in microseconds.
+        offset_us: u32,
+    },
+    /// Align to the lowest car ID heard.
+    FollowLowest {
+        /// Pipeline latency of a state frame (see [`DEFAULT_STATE_LATENCY_US`]).
+        latency_us: u32,
+    },
+}
+
+/// How often and when the state is broadcast.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StateTiming {
+    /// Slotted: once per frame, at the car's slot.
+    Slotted {
+        /// Slot number, 0..SLOTS.
+        slot: u8,
+        /// Frame time base.
+        time_base: TimeBase,
+    },
+    /// Unscheduled: every `period_us` from the first state the application sets (CSMA only).
+    Periodic {
+        /// Period in microseconds.
+        period_us: u32,
+    },
+}
+
+impl StateTiming {
+    /// Slotted at the default slot of `id`, following the lowest ID heard.
+    pub fn slotted(id: CarId) -> Self {
+        StateTiming::Slotted {
+            slot: default_slot(id),
+            time_base: TimeBase::FollowLowest {
+                latency_us: DEFAULT_STATE_LATENCY_US,
+            },
+        }
+    }
+}
+
+/// Default slot of a car: `(id - 1) % SLOTS`.
+pub fn default_slot(id: CarId) -> u8 {
+    (id.get() - 1) % SLOTS
+}
+
+/// Signed distance from `b` to `a` modulo the frame, in `(-FRAME_US/2, FRAME_US/2]`.
+fn phase_diff(a: u64, b: u64) -> i64 {
+    let f = i64::from(FRAME_US);
+    let d = (a as i64).wrapping_sub(b as i64).rem_euclid(f);
+    if d > f / 2 {
+        d - f
+    } else {
+        d
+    }
+}
+
+/// Slot timer state.
+#[derive(Debug, Clone)]
+pub struct Schedule {
+    timing: StateTiming,
+    /// `None` for a listener (the ground station), which follows every car.
+    own: Option<CarId>,
+    /// A time (local clock) at which some frame's slot 0 started.
+    epoch: u64,
+    /// Car currently followed, with the time it was last heard.
+    reference: Option<(CarId, u64)>,
+    locked: bool,
+    outliers: u8,
+    dissent: u8,
+    next_tx: Option<u64>,
+    last_tx: Option<u64>,
+}
+
+impl Schedule {
+    /// A schedule for car `own`.
+    pub fn new(own: CarId, timing: StateTiming) -> Self {
+        Self::with_owner(Some(own), timing)
+    }
+
+    /// A schedule that only learns the cars' frame phase (ground station), following the
+    /// lowest car ID heard; it sends nothing by itself.
+    pub fn listener(latency_us: u32) -> Self {
+        Self::with_owner(
+            None,
+            StateTiming::Slotted {
+                slot: SLOTS - 1,
+                time_base: TimeBase::FollowLowest { latency_us },
+            },
+        )
+    }
+
+    fn with_owner(own: Option<CarId>, timing: StateTiming) -> Self {
+        Self {
+            timing,
+            own,
+            epoch: 0,
+            reference: None,
+            locked: false,
+            outliers: 0,
+            dissent: 0,
+            next_tx: None,
+            last_tx: None,
+        }
+    }
+
+    /// The timing in use.
+    pub fn timing(&self) -> StateTiming {
+        self.timing
+    }
+
+    /// Whether the frame boundaries come from a tick or a lower car (false: free-running).
+    pub fn is_locked(&self) -> bool {
+        self.locked
+    }
+
+    /// Car followed for [`TimeBase::FollowLowest`].
+    pub fn reference(&self) -> Option<CarId> {
+        self.reference.map(|(id, _)| id)
+    }
+
+    fn adjust(&mut self, estimate: u64) {
+        let e = phase_diff(estimate, self.epoch);
+        if !self.locked {
+            self.epoch = estimate;
+            self.locked = true;
+            self.outliers = 0;
+        } else if e.unsigned_abs() > OUTLIER_US {
+            // A late reference frame (deferred by CSMA) must not drag everybody along;
+            // only a persistent shift is followed.
+            self.outliers += 1;
+            if self.outliers < OUTLIERS_TO_JUMP {
+                return;
+            }
+            self.epoch = estimate;
+            self.outliers = 0;
+        } else {
+            self.outliers = 0;
+            self.epoch = (self.epoch as i64 + e / 2) as u64;
+        }
+        self.next_tx = None;
+    }
+
+    /// A shared tick (tracking frame) arrived at `now`.
+    pub fn external_tick(&mut self, now: u64) {
+        if let StateTiming::Slotted {
+            time_base: TimeBase::External { offset_us },
+            ..
+        } = self.timing
+        {
+            self.adjust(now + u64::from(offset_us));
+        }
+    }
+
+    /// A state broadcast from `src` finished arriving at `now`.
+    pub fn heard_state(&mut self, now: u64, src: CarId, stale_after_us: u64) {
+        let StateTiming::Slotted {
+            time_base: TimeBase::FollowLowest { latency_us },
+            ..
+        } = self.timing
+        else {
+            return;
+        };
+        let back = u64::from(latency_us) + u64::from(default_slot(src)) * u64::from(SLOT_US);
+        let estimate = now.saturating_sub(back);
+        if self.own.is_some_and(|own| src >= own) {
+            self.root_vote(now, estimate, stale_after_us);
+            return;
+        }
+        let current_ok = match self.reference {
+            Some((r, heard)) => now.saturating_sub(heard) <= stale_after_us && r < src,
+            None => false,
+        };
+        if current_ok {
+            return;
+        }
+        let switched = self.reference.map(|(r, _)| r) != Some(src);
+        self.reference = Some((src, now));
+        if switched {
+            self.locked = false;
+        }
+        self.adjust(estimate);
+    }
+
+    /// A car with no lower ID to follow (the root) still yields when every frame it hears
+    /// disagrees with its phase: then it is the odd one out (e.g. its slot collides with a
+    /// car that aligned to another root while this one was unheard).
+    fn root_vote(&mut self, now: u64, estimate: u64, stale_after_us: u64) {
+        let following = self
+            .reference
+            .is_some_and(|(_, heard)| now.saturating_sub(heard) <= stale_after_us);
+        if following {
+            return;
+        }
+        if !self.locked {
+            self.epoch = estimate;
+            self.locked = true;
+            self.next_tx = None;
+            return;
+        }
+        if phase_diff(estimate, self.epoch).unsigned_abs() <= OUTLIER_US {
+            self.dissent = 0;
+            return;
+        }
+        self.dissent += 1;
+        if self.dissent >= ROOT_YIELD {
+            self.dissent = 0;
+            self.epoch = estimate;
+            self.next_tx = None;
+        }
+    }
+
+    /// Forget a reference that has not been heard for `stale_after_us` (keep free-running).
+    pub fn expire(&mut self, now: u64, stale_after_us: u64) {
+        if let Some((_, heard)) = self.reference {
+            if now.saturating_sub(heard) > stale_after_us {
+                self.reference = None;
+            }
+        }
+    }
+
+    /// The slot this schedule sends in (0 for periodic timing).
+    pub fn own_slot(&self) -> u8 {
+        match self.timing {
+            StateTiming::Slotted { slot, .. } => slot % SLOTS,
+            StateTiming::Periodic { .. } => 0,
+        }
+    }
+
+    /// Earliest start of `slot` at or after `from`, once the frame phase is known.
+    pub fn slot_start(&self, slot: u8, from: u64) -> Option<u64> {
+        if !self.locked || matches!(self.timing, StateTiming::Periodic { .. }) {
+            return None;
+        }
+        Some(self.slot_start_unchecked(slot, from))
+    }
+
+    fn next_slot_start(&self, from: u64) -> u64 {
+        self.slot_start_unchecked(self.own_slot(), from)
+    }
+
+    fn slot_start_unchecked(&self, slot: u8, from: u64) -> u64 {
+        let slot = u64::from(slot % SLOTS);
+        let f = u64::from(FRAME_US);
+        let base = self.epoch + slot * u64::from(SLOT_US);
+        let k = if from > base {
+            (from - base).div_ceil(f)
+        } else {
+            0
+        };
+        let mut t = base + k * f;
+        // The epoch may lie ahead of `from` after an adjustment.
+        while t >= from + f {
+            t -= f;
+        }
+        t
+    }
+
+    /// When the next state broadcast is due (computed lazily from `now`).
+    pub fn next_due(&mut self, now: u64) -> u64 {
+        if let Some(t) = self.next_tx {
+            return t;
+        }
+        let t = match self.timing {
+            StateTiming::Periodic { period_us } => match self.last_tx {
+                Some(l) => l + u64::from(period_us),
+                None => now,
+            },
+            StateTiming::Slotted { .. } => {
+                // At most one broadcast per frame, even when the epoch moved.
+                let earliest = match self.last_tx {
+                    Some(l) => (l + u64::from(FRAME_US) / 2).max(now),
+                    None => now,
+                };
+                self.next_slot_start(earliest)
+            }
+        };
+        self.next_tx = Some(t);
+        t
+    }
+
+    /// Time of the last broadcast.
+    pub fn last_sent(&self) -> Option<u64> {
+        self.last_tx
+    }
+
+    /// Record that a broadcast was sent at `now`.
+    pub fn sent(&mut self, now: u64) {
+        self.last_tx = Some(now);
+        self.next_tx = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn id(n: u8) -> CarId {
+        CarId::new(n).unwrap()
+    }
+
+    #[test]
+    fn slots_fit_a_state_frame() {
+        // 16 bytes + 4 bytes of radio preamble at 86.8 us per byte.
+        const { assert!(20 * 868 / 10 < SLOT_US) };
+        assert_eq!(default_slot(id(1)), 0);
+        assert_eq!(default_slot(id(17)), 0);
+        assert_eq!(default_slot(id(16)), 15);
+    }
+
+    #[test]
+    fn free_running_slot_times() {
+        let mut s = Schedule::new(id(3), StateTiming::slotted(id(3)));
+        let t0 = s.next_due(0);
+        assert_eq!(t0, 2 * u64::from(SLOT_US));
+        s.sent(t0);
+        let t1 = s.next_due(t0 + 1);
+        assert_eq!(t1, t0 + u64::from(FRAME_US));
+    }
+
+    #[test]
+    fn follows_lowest_heard() {
+        let mut s = Schedule::new(id(3), StateTiming::slotted(id(3)));
+        // Car 2's frame (slot 1) arrives at 1_000_000: its slot began latency earlier.
+        let rx = 1_000_000u64;
+        s.heard_state(rx, id(2), 1_000_000);
+        assert_eq!(s.reference(), Some(id(2)));
+        let slot1_start = rx - u64::from(DEFAULT_STATE_LATENCY_US);
+        let due = s.next_due(rx);
+        // Our slot (2) of that frame has passed: the next frame's.
+        assert_eq!(due, slot1_start + u64::from(SLOT_US) + u64::from(FRAME_US));
+        // A higher ID is ignored, a lower one takes over.
+        s.heard_state(rx + 10, id(5), 1_000_000);
+        assert_eq!(s.reference(), Some(id(2)));
+        s.heard_state(rx + 20, id(1), 1_000_000);
+        assert_eq!(s.reference(), Some(id(1)));
+    }
+
+    #[test]
+    fn root_yields_to_persistent_dissent_only() {
+        let mut s = Schedule::new(id(1), StateTiming::slotted(id(1)));
+        let f = u64::from(FRAME_US);
+        let lat = u64::from(DEFAULT_STATE_LATENCY_US);
+        // The first frame heard sets the phase of a car that has nobody to follow.
+        let t0 = 10 * f + 4 * u64::from(SLOT_US) + lat + 5_000;
+        s.heard_state(t0, id(5), 1_000_000);
+        assert!(s.is_locked());
+        let epoch = t0 - lat - 4 * u64::from(SLOT_US);
+        assert_eq!(s.next_due(t0) % f, epoch % f);
+        // A few late frames are ignored.
+        for k in 1..u64::from(ROOT_YIELD) {
+            s.heard_state(t0 + k * f + 3_000, id(5), 1_000_000);
+        }
+        // Car 6 (slot 5) agrees and resets the count.
+        s.heard_state(t0 + 9 * f + u64::from(SLOT_US), id(6), 1_000_000);
+        assert_eq!(s.next_due(t0 + 9 * f) % f, epoch % f);
+        // Persistent disagreement moves the root.
+        for k in 10..10 + u64::from(ROOT_YIELD) {
+            s.heard_state(t0 + k * f + 3_000, id(5), 1_000_000);
+        }
+        assert_eq!(s.next_due(t0 + 20 * f) % f, (epoch + 3_000) % f);
+    }
+
+    #[test]
+    fn one_broadcast_per_frame_after_a_jump() {
+        let timing = StateTiming::Slotted {
+            slot: 3,
+            time_base: TimeBase::External { offset_us: 0 },
+        };
+        let mut s = Schedule::new(id(4), timing);
+        let t = s.next_due(10_000);
+        s.sent(t);
+        // Epoch jumps so that the next slot would come right away.
+        s.external_tick(t + 100);
+        let n = s.next_due(t + 100);
+        assert!(n >= t + u64::from(FRAME_US) / 2);
+    }
+
+    #[test]
+    fn listener_follows_lowest_and_reports_slots() {
+        let mut s = Schedule::listener(DEFAULT_STATE_LATENCY_US);
+        assert_eq!(s.slot_start(3, 0), None);
+        let rx = 500_000u64;
+        s.heard_state(rx, id(126), 1_000_000);
+        s.heard_state(rx + 10, id(7), 1_000_000);
+        assert_eq!(s.reference(), Some(id(7)));
+        let slot6 = rx + 10 - u64::from(DEFAULT_STATE_LATENCY_US);
+        let next = s.slot_start(7, rx + 10).unwrap();
+        assert_eq!(next, slot6 + u64::from(SLOT_US) + u64::from(FRAME_US));
+    }
+
+    #[test]
+    fn periodic_timing() {
+        let mut s = Schedule::new(id(4), StateTiming::Periodic { period_us: 1000 });
+        assert_eq!(s.next_due(50), 50);
+        s.sent(50);
+        assert_eq!(s.next_due(60), 1050);
+    }
+
+    #[test]
+    fn phase_diff_wraps() {
+        assert_eq!(phase_diff(10, 0), 10);
+        assert_eq!(phase_diff(0, 10), -10);
+        assert_eq!(phase_diff(u64::from(FRAME_US) + 5, 0), 5);
+    }
+}
