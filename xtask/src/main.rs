@@ -6,7 +6,6 @@
 mod bench;
 mod demo;
 mod fw;
-mod fwlint;
 mod install;
 mod qemu;
 mod test;

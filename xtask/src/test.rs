@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 
-use crate::{fw, fwlint, install, stage, workspace_root};
+use crate::{fw, install, stage, workspace_root};
 
 #[derive(Debug, clap::Args)]
 pub struct TestArgs {
@@ -75,7 +75,7 @@ pub fn run(args: TestArgs) -> Result<()> {
             Ok(note)
         });
         if !args.no_lint {
-            record("clippy (firmware)", &mut || fwlint::clippy("qemu_virt"));
+            record("clippy (firmware)", &mut || fw::clippy("qemu_virt"));
         }
     }
 
@@ -91,6 +91,22 @@ pub fn run(args: TestArgs) -> Result<()> {
             }
             (None, false) => bail!("the firmware did not build, so the QEMU tests cannot run"),
         }
+        let counts = run_counting(&mut cmd)?;
+        totals.add(&counts);
+        Ok(format!("{} passed, {} failed, {} ignored", counts.passed, counts.failed, counts.ignored))
+    });
+
+    record("firmware logic tests (host)", &mut || {
+        let mut cmd = Command::new(cargo_bin());
+        cmd.args([
+            "test",
+            "--manifest-path",
+            "ubc-app/Cargo.toml",
+            "--lib",
+            "--tests",
+            "--target-dir",
+            "ubc-app/target/host",
+        ]);
         let counts = run_counting(&mut cmd)?;
         totals.add(&counts);
         Ok(format!("{} passed, {} failed, {} ignored", counts.passed, counts.failed, counts.ignored))

@@ -1,0 +1,157 @@
+//! CLINT machine timer: a monotonic clock from `mtime` and one-shot wakeups through
+//! `mtimecmp` (hart 0). The program reads time as ticks or microseconds; the timer interrupt
+//! only ends a WFI idle, it carries no work of its own.
+
+use crate::mmio::RegisterBus;
+
+/// Register offsets for hart 0.
+pub mod reg {
+    /// `mtimecmp` of hart 0 (64 bits, low word first).
+    pub const MTIMECMP: usize = 0x4000;
+    /// `mtime` (64 bits, low word first).
+    pub const MTIME: usize = 0xBFF8;
+}
+
+/// The machine timer and the rate `mtime` counts at.
+#[derive(Debug)]
+pub struct Clint<B> {
+    bus: B,
+    hz: u32,
+}
+
+impl<B: RegisterBus> Clint<B> {
+    /// A timer whose `mtime` counts at `hz` (must be nonzero).
+    pub const fn new(bus: B, hz: u32) -> Self {
+        Self { bus, hz }
+    }
+
+    /// The `mtime` rate in Hz.
+    pub const fn hz(&self) -> u32 {
+        self.hz
+    }
+
+    /// Current `mtime`. The high word is read twice so a carry between the two word reads of
+    /// this 32-bit hart cannot produce a time 2^32 ticks off.
+    pub fn ticks(&self) -> u64 {
+        loop {
+            let hi = self.bus.read32(reg::MTIME + 4);
+            let lo = self.bus.read32(reg::MTIME);
+            if self.bus.read32(reg::MTIME + 4) == hi {
+                return (u64::from(hi) << 32) | u64::from(lo);
+            }
+        }
+    }
+
+    /// Current time in microseconds since reset.
+    pub fn micros(&self) -> u64 {
+        ticks_to_micros(self.ticks(), self.hz)
+    }
+
+    /// Current time in milliseconds since reset.
+    pub fn millis(&self) -> u64 {
+        self.micros() / 1000
+    }
+
+    /// Ticks in `us` microseconds.
+    pub fn ticks_from_micros(&self, us: u64) -> u64 {
+        micros_to_ticks(us, self.hz)
+    }
+
+    /// Arms the timer interrupt for the moment `mtime` reaches `deadline`.
+    ///
+    /// The low word is parked at its maximum first, so no intermediate value lies in the past.
+    pub fn set_wakeup(&self, deadline: u64) {
+        self.bus.write32(reg::MTIMECMP, u32::MAX);
+        self.bus.write32(reg::MTIMECMP + 4, (deadline >> 32) as u32);
+        self.bus.write32(reg::MTIMECMP, deadline as u32);
+    }
+
+    /// Disarms the timer interrupt (clears a pending one).
+    pub fn clear_wakeup(&self) {
+        self.bus.write32(reg::MTIMECMP, u32::MAX);
+        self.bus.write32(reg::MTIMECMP + 4, u32::MAX);
+    }
+
+    /// The armed deadline.
+    pub fn wakeup(&self) -> u64 {
+        (u64::from(self.bus.read32(reg::MTIMECMP + 4)) << 32)
+            | u64::from(self.bus.read32(reg::MTIMECMP))
+    }
+
+    /// Busy-waits `us` microseconds (the hart stays awake).
+    pub fn delay_us(&self, us: u64) {
+        let end = self.ticks().saturating_add(self.ticks_from_micros(us));
+        while self.ticks() < end {
+            core::hint::spin_loop();
+        }
+    }
+}
+
+/// Converts ticks at `hz` to microseconds without overflow for any `u64` tick count.
+pub const fn ticks_to_micros(ticks: u64, hz: u32) -> u64 {
+    let hz = hz as u64;
+    (ticks / hz) * 1_000_000 + (ticks % hz) * 1_000_000 / hz
+}
+
+/// Converts microseconds to ticks at `hz` (rounding down), saturating at `u64::MAX`.
+pub const fn micros_to_ticks(us: u64, hz: u32) -> u64 {
+    let hz = hz as u64;
+    let whole = (us / 1_000_000).saturating_mul(hz);
+    whole.saturating_add((us % 1_000_000) * hz / 1_000_000)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mmio::testing::RamBus;
+    use proptest::prelude::*;
+
+    const HZ: u32 = 10_000_000;
+
+    #[test]
+    fn reads_64_bit_mtime() {
+        let bus = RamBus::new(0xC000);
+        bus.write32(reg::MTIME, 0x89AB_CDEF);
+        bus.write32(reg::MTIME + 4, 0x0000_0012);
+        let clint = Clint::new(&bus, HZ);
+        assert_eq!(clint.ticks(), 0x12_89AB_CDEF);
+        assert_eq!(clint.micros(), 0x12_89AB_CDEF / 10);
+    }
+
+    #[test]
+    fn wakeup_registers() {
+        let bus = RamBus::new(0xC000);
+        let clint = Clint::new(&bus, HZ);
+        clint.set_wakeup(0x1_0000_0005);
+        assert_eq!(bus.read32(reg::MTIMECMP), 5);
+        assert_eq!(bus.read32(reg::MTIMECMP + 4), 1);
+        assert_eq!(clint.wakeup(), 0x1_0000_0005);
+        clint.clear_wakeup();
+        assert_eq!(clint.wakeup(), u64::MAX);
+    }
+
+    #[test]
+    fn conversions() {
+        assert_eq!(ticks_to_micros(10_000_000, HZ), 1_000_000);
+        assert_eq!(ticks_to_micros(15, HZ), 1);
+        assert_eq!(micros_to_ticks(50_000, HZ), 500_000);
+        assert_eq!(micros_to_ticks(u64::MAX, HZ), u64::MAX);
+        assert_eq!(ticks_to_micros(u64::MAX, HZ), u64::MAX / 10);
+        assert_eq!(micros_to_ticks(1, 32_768), 0);
+        assert_eq!(micros_to_ticks(1_000_000, 32_768), 32_768);
+    }
+
+    proptest! {
+        #[test]
+        fn micros_round_trip_loses_under_a_microsecond(us in 0u64..(1 << 50), hz in 1_000_000u32..) {
+            let back = ticks_to_micros(micros_to_ticks(us, hz), hz);
+            prop_assert!(back <= us && us - back <= 1, "{} us -> {} us at {} Hz", us, back, hz);
+        }
+
+        #[test]
+        fn micros_round_trip_exact_at_whole_megahertz(us in 0u64..(1 << 50), mhz in 1u32..4000) {
+            let hz = mhz * 1_000_000;
+            prop_assert_eq!(ticks_to_micros(micros_to_ticks(us, hz), hz), us);
+        }
+    }
+}

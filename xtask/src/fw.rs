@@ -1,0 +1,356 @@
+//! `cargo xtask fw`: builds the `ubc-app` firmware for one board and reports its size.
+//!
+//! Toolchain choice: when the active rustup toolchain has the `riscv32ima-unknown-none-elf`
+//! target installed, plain `cargo build --target ...` is used. Otherwise Debian's Rust
+//! (`rustc-web`, `cargo-web`, `rust-web-src`: `/usr/bin/cargo`, `/usr/bin/rustc`, library
+//! sources under `/usr/lib/rustlib/src/rust/library`) builds `core` itself with
+//! `RUSTC_BOOTSTRAP=1 -Zbuild-std=core,compiler_builtins` and links with `ld.lld-16`. The
+//! child cargo gets an environment cleaned of everything the outer `cargo xtask` set
+//! (`CARGO*`, `RUSTC*`, `RUSTUP_*`, ...), so the rustup proxies cannot leak into that build.
+//!
+//! Each board builds into its own target dir, `ubc-app/target/<board>/`.
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{bail, Context, Result};
+use object::{Object, ObjectSection, SectionKind};
+
+/// The firmware's target triple (RV32IMA, machine mode, no OS).
+pub const TARGET: &str = "riscv32ima-unknown-none-elf";
+/// Boards the firmware can be built for (cargo features of `ubc-app`).
+pub const BOARDS: &[&str] = &["qemu_virt"];
+/// Debian packages of the fallback toolchain.
+const DEBIAN_TOOLCHAIN: &[&str] = &["rustc-web", "cargo-web", "rust-web-src", "lld-16"];
+const DEBIAN_CARGO: &str = "/usr/bin/cargo";
+const DEBIAN_CARGO_CLIPPY: &str = "/usr/bin/cargo-clippy";
+const DEBIAN_CLIPPY_PACKAGE: &str = "rust-web-clippy";
+/// Flags that build `core` from source for the target (Debian toolchain).
+const BUILD_STD: [&str; 2] = [
+    "-Zbuild-std=core,compiler_builtins",
+    "-Zbuild-std-features=compiler-builtins-mem",
+];
+const DEBIAN_RUSTC: &str = "/usr/bin/rustc";
+const DEBIAN_LINKER: &str = "ld.lld-16";
+/// Environment variable cargo reads the target's linker from.
+const LINKER_VAR: &str = "CARGO_TARGET_RISCV32IMA_UNKNOWN_NONE_ELF_LINKER";
+/// Name of the firmware binary.
+const BIN: &str = "ubc-app";
+
+/// Section sizes of a firmware image, in bytes, as `size` (Berkeley format) counts them:
+/// `text` is code plus read-only data, `data` initialised writable data, `bss` zeroed data
+/// (the stack and heap reservations of the linker script are not counted).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Sizes {
+    /// Code and read-only data.
+    pub text: u64,
+    /// Initialised data (stored in the image and copied to RAM at boot).
+    pub data: u64,
+    /// Zero-initialised data.
+    pub bss: u64,
+}
+
+/// Which compiler builds the firmware.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Toolchain {
+    /// The active rustup toolchain has the target.
+    Rustup,
+    /// Debian's rustc/cargo with `-Zbuild-std`.
+    Debian,
+}
+
+/// The firmware crate's directory.
+pub fn app_dir() -> PathBuf {
+    crate::workspace_root().join("ubc-app")
+}
+
+/// Where `build` leaves the ELF for `board`.
+pub fn elf_path(board: &str, release: bool) -> PathBuf {
+    app_dir()
+        .join("target")
+        .join(board)
+        .join(TARGET)
+        .join(if release { "release" } else { "debug" })
+        .join(BIN)
+}
+
+/// Builds the firmware for `board`, prints its section sizes and, as the last line, the
+/// absolute path of the ELF, which it returns.
+pub fn build(board: &str, release: bool) -> Result<PathBuf> {
+    if !BOARDS.contains(&board) {
+        bail!(
+            "unknown board `{board}`; known boards: {}",
+            BOARDS.join(", ")
+        );
+    }
+    let toolchain = pick_toolchain()?;
+    let app = app_dir();
+    let target_dir = app.join("target").join(board);
+    let mut cmd = match toolchain {
+        Toolchain::Rustup => {
+            let mut cmd = clean_command("cargo", false);
+            cmd.arg("build");
+            cmd
+        }
+        Toolchain::Debian => {
+            let mut cmd = clean_command(DEBIAN_CARGO, true);
+            cmd.arg("build")
+                .args(BUILD_STD)
+                .env("RUSTC", DEBIAN_RUSTC)
+                .env("RUSTC_BOOTSTRAP", "1")
+                .env(LINKER_VAR, DEBIAN_LINKER);
+            cmd
+        }
+    };
+    cmd.current_dir(&app)
+        .args(["--target", TARGET, "--features", board, "--target-dir"])
+        .arg(&target_dir);
+    if release {
+        cmd.arg("--release");
+    }
+    eprintln!(
+        "xtask: building firmware for {board} ({}, {:?} toolchain)",
+        if release { "release" } else { "debug" },
+        toolchain
+    );
+    let status = cmd
+        .status()
+        .with_context(|| format!("running {:?}", cmd.get_program()))?;
+    if !status.success() {
+        bail!("firmware build for {board} failed ({status})");
+    }
+    let elf = elf_path(board, release);
+    let elf = elf
+        .canonicalize()
+        .with_context(|| format!("firmware ELF missing at {}", elf.display()))?;
+    let s = sizes(&elf)?;
+    println!("text {} data {} bss {}", s.text, s.data, s.bss);
+    println!("{}", elf.display());
+    Ok(elf)
+}
+
+/// Runs clippy (`-D warnings`) over the firmware for `board` on the riscv32 target:
+/// `ubc-app` (its own workspace) and `ubc-hal` with the features the firmware enables, so the
+/// target-only code (trap handlers, logger) is linted too. Host-side lints of `ubc-hal` are
+/// the ordinary `cargo clippy -p ubc-hal --all-targets`. Returns a one-line summary.
+pub fn clippy(board: &str) -> Result<String> {
+    if !BOARDS.contains(&board) {
+        bail!(
+            "unknown board `{board}`; known boards: {}",
+            BOARDS.join(", ")
+        );
+    }
+    let toolchain = pick_toolchain()?;
+    if toolchain == Toolchain::Debian {
+        crate::install::ensure_debian_packages(&[DEBIAN_CLIPPY_PACKAGE])?;
+    }
+    let app = app_dir();
+    let target_dir = app.join("target").join("clippy");
+    let hal_features = format!("{board},logger,rt");
+    let runs: [(PathBuf, Vec<&str>); 2] = [
+        (app.clone(), vec!["--features", board]),
+        (
+            crate::workspace_root(),
+            vec!["-p", "ubc-hal", "--features", &hal_features],
+        ),
+    ];
+    for (dir, args) in &runs {
+        let mut cmd = match toolchain {
+            Toolchain::Rustup => clean_command("cargo", false),
+            Toolchain::Debian => {
+                let mut cmd = clean_command(DEBIAN_CARGO_CLIPPY, true);
+                cmd.env("CARGO", DEBIAN_CARGO)
+                    .env("RUSTC", DEBIAN_RUSTC)
+                    .env("RUSTC_BOOTSTRAP", "1");
+                cmd
+            }
+        };
+        cmd.arg("clippy");
+        if toolchain == Toolchain::Debian {
+            cmd.args(BUILD_STD);
+        }
+        cmd.current_dir(dir)
+            .args(["--release", "--target", TARGET, "--target-dir"])
+            .arg(&target_dir)
+            .args(args)
+            .args(["--", "-D", "warnings"]);
+        eprintln!("xtask: firmware clippy in {} {:?}", dir.display(), args);
+        let status = cmd
+            .status()
+            .with_context(|| format!("running {:?}", cmd.get_program()))?;
+        if !status.success() {
+            bail!("firmware clippy failed in {} ({status})", dir.display());
+        }
+    }
+    Ok(format!(
+        "firmware clippy clean for {board} on {TARGET}: ubc-app, ubc-hal ({hal_features})"
+    ))
+}
+
+/// Section sizes of the ELF at `elf` (see [`Sizes`]).
+pub fn sizes(elf: &Path) -> Result<Sizes> {
+    let bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
+    let file = object::File::parse(&*bytes)
+        .with_context(|| format!("parsing {} as an object file", elf.display()))?;
+    let mut s = Sizes::default();
+    for section in file.sections() {
+        let name = section.name().unwrap_or("");
+        let size = section.size();
+        match section.kind() {
+            SectionKind::Text
+            | SectionKind::ReadOnlyData
+            | SectionKind::ReadOnlyDataWithRel
+            | SectionKind::ReadOnlyString => s.text += size,
+            SectionKind::Data | SectionKind::Tls => s.data += size,
+            SectionKind::UninitializedData | SectionKind::UninitializedTls
+                if !is_reservation(name) =>
+            {
+                s.bss += size
+            }
+            _ => {}
+        }
+    }
+    Ok(s)
+}
+
+/// Linker-script reservations that `size` would count as bss but hold no program data.
+fn is_reservation(name: &str) -> bool {
+    matches!(name, ".stack" | ".heap")
+}
+
+fn pick_toolchain() -> Result<Toolchain> {
+    if rustup_has_target() {
+        return Ok(Toolchain::Rustup);
+    }
+    crate::install::ensure_debian_packages(DEBIAN_TOOLCHAIN)?;
+    for tool in [DEBIAN_CARGO, DEBIAN_RUSTC] {
+        if !Path::new(tool).is_file() {
+            bail!("{tool} is missing although the Debian Rust packages are installed");
+        }
+    }
+    if !crate::install::have_command(DEBIAN_LINKER) {
+        bail!("{DEBIAN_LINKER} is not on PATH although lld-16 is installed");
+    }
+    Ok(Toolchain::Debian)
+}
+
+/// Whether the active rustup toolchain has the firmware target installed.
+fn rustup_has_target() -> bool {
+    if !crate::install::have_command("rustup") {
+        return false;
+    }
+    clean_command("rustup", false)
+        .current_dir(app_dir())
+        .args(["target", "list", "--installed"])
+        .output()
+        .map(|out| {
+            out.status.success()
+                && String::from_utf8_lossy(&out.stdout)
+                    .lines()
+                    .any(|l| l.trim() == TARGET)
+        })
+        .unwrap_or(false)
+}
+
+/// True for variables the outer cargo/rustup set that must not reach the firmware build.
+fn inherited_build_var(name: &str, drop_rustup: bool) -> bool {
+    const KEEP: &[&str] = &[
+        "CARGO_HOME",
+        "CARGO_NET_",
+        "CARGO_HTTP_",
+        "CARGO_REGISTRIES_",
+        "CARGO_REGISTRY_",
+        "CARGO_TERM_",
+    ];
+    if name.starts_with("CARGO") || name.starts_with("__CARGO") {
+        return !KEEP.iter().any(|keep| name.starts_with(keep));
+    }
+    if name.starts_with("RUSTUP_") {
+        return drop_rustup;
+    }
+    matches!(
+        name,
+        "RUSTC"
+            | "RUSTC_WRAPPER"
+            | "RUSTC_WORKSPACE_WRAPPER"
+            | "RUSTC_BOOTSTRAP"
+            | "RUSTDOC"
+            | "RUSTDOCFLAGS"
+            | "RUSTFLAGS"
+            | "RUST_TOOLCHAIN"
+    ) || name.starts_with("RUSTC_")
+}
+
+/// A command whose environment lacks the outer build's variables. With `debian`, rustup's
+/// variables go too and `/usr/bin` leads `PATH`, so `cargo`/`rustc` found by name are Debian's.
+fn clean_command(program: &str, debian: bool) -> Command {
+    let mut cmd = Command::new(program);
+    for (name, _) in std::env::vars_os() {
+        if let Some(name) = name.to_str() {
+            if inherited_build_var(name, debian) {
+                cmd.env_remove(name);
+            }
+        }
+    }
+    if debian {
+        let mut path = OsString::from("/usr/bin");
+        if let Some(old) = std::env::var_os("PATH") {
+            path.push(":");
+            path.push(old);
+        }
+        cmd.env("PATH", path);
+    }
+    cmd
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_outer_build_environment() {
+        for var in [
+            "CARGO",
+            "CARGO_MANIFEST_DIR",
+            "CARGO_PKG_NAME",
+            "CARGO_TARGET_DIR",
+            "CARGO_BUILD_TARGET",
+            "CARGO_ENCODED_RUSTFLAGS",
+            "CARGO_MAKEFLAGS",
+            "__CARGO_FIX_PLZ",
+            "RUSTC",
+            "RUSTC_WRAPPER",
+            "RUSTDOC",
+            "RUSTFLAGS",
+        ] {
+            assert!(inherited_build_var(var, false), "{var} must be stripped");
+        }
+        for var in ["CARGO_HOME", "CARGO_NET_OFFLINE", "PATH", "HOME", "TERM"] {
+            assert!(!inherited_build_var(var, true), "{var} must be kept");
+        }
+        assert!(inherited_build_var("RUSTUP_TOOLCHAIN", true));
+        assert!(!inherited_build_var("RUSTUP_TOOLCHAIN", false));
+    }
+
+    #[test]
+    fn elf_path_layout() {
+        let p = elf_path("qemu_virt", true);
+        assert!(p.ends_with("ubc-app/target/qemu_virt/riscv32ima-unknown-none-elf/release/ubc-app"));
+        assert!(elf_path("qemu_virt", false).ends_with("debug/ubc-app"));
+    }
+
+    /// Slow (builds `core` for the target): `cargo test -p xtask -- --ignored firmware_clippy`.
+    #[test]
+    #[ignore]
+    fn firmware_clippy_is_clean() {
+        let summary = clippy("qemu_virt").expect("firmware clippy");
+        assert!(summary.contains("ubc-hal"), "{summary}");
+    }
+
+    #[test]
+    fn rejects_unknown_board() {
+        let err = build("no_such_board", true).unwrap_err().to_string();
+        assert!(err.contains("unknown board"), "{err}");
+    }
+}
