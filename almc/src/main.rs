@@ -6,8 +6,10 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod ground;
 mod lbc;
 mod lbc_emu;
+mod radio;
 
 #[derive(Debug, Parser)]
 #[command(name = "almc", version, about = "ALMC micro-car testbed tool")]
@@ -23,11 +25,18 @@ enum Group {
     Lbc(lbc::LbcCommand),
     /// Run an emulated lower board (LBC) behind a socket.
     LbcEmu(lbc_emu::Args),
+    /// List the cars heard on the radio (ground station).
+    Cars(radio::CarsArgs),
+    /// Ground-station radio tools: raw authenticated requests, the simulated radio hub.
+    #[command(subcommand)]
+    Radio(radio::RadioCommand),
 }
 
 fn main() -> ExitCode {
     match Cli::parse().command {
         Group::Lbc(cmd) => lbc::run(cmd),
         Group::LbcEmu(args) => lbc_emu::run(args),
+        Group::Cars(args) => radio::run_cars(args),
+        Group::Radio(cmd) => radio::run(cmd),
     }
 }

@@ -1,8 +1,9 @@
-//! The simulated world of the ALMC testbed. For now: the radio medium model
-//! ([`radio_medium`]) and simulations of cars and the ground station talking over it
-//! ([`radio_sim`]).
+//! The simulated world of the ALMC testbed: the radio medium model ([`radio_medium`]),
+//! simulations of cars and the ground station talking over it ([`radio_sim`]), and a
+//! real-time hub that runs the medium between socket-attached radios ([`hub`]).
 
 #![forbid(unsafe_code)]
 
+pub mod hub;
 pub mod radio_medium;
 pub mod radio_sim;

@@ -190,7 +190,9 @@ pub struct RadioMedium {
     queue: BinaryHeap<Scheduled>,
     order: u64,
     now: Nanos,
+    /// Transmissions by id; ids of finished ones are reused through `free_air`.
     air: Vec<Option<Transmission>>,
+    free_air: Vec<usize>,
     live: Vec<usize>,
     stats: MediumStats,
 }
@@ -206,6 +208,7 @@ impl RadioMedium {
             order: 0,
             now: 0,
             air: Vec::new(),
+            free_air: Vec::new(),
             live: Vec::new(),
             stats: MediumStats::default(),
         }
@@ -428,13 +431,22 @@ impl RadioMedium {
         n.queued_bytes -= bytes.len();
         n.attempts = 0;
         let end = at + self.params.air_time_ns(bytes.len());
-        let id = self.air.len();
-        self.air.push(Some(Transmission {
+        let tx = Transmission {
             src: node,
             start: at,
             end,
             bytes,
-        }));
+        };
+        let id = match self.free_air.pop() {
+            Some(id) => {
+                self.air[id] = Some(tx);
+                id
+            }
+            None => {
+                self.air.push(Some(tx));
+                self.air.len() - 1
+            }
+        };
         self.live.push(id);
         self.stats.packets_sent += 1;
         self.schedule(end, What::TxEnd { tx: id });
@@ -507,11 +519,14 @@ impl RadioMedium {
         }
         // Keep transmissions that may still overlap a packet in flight.
         let horizon = at.saturating_sub(self.params.air_time_ns(self.params.mtu));
+        // Their end events have all been handled, so their ids can be reused.
         let air = &mut self.air;
+        let free = &mut self.free_air;
         self.live.retain(|&l| match &air[l] {
             Some(t) if t.end >= horizon => true,
             _ => {
                 air[l] = None;
+                free.push(l);
                 false
             }
         });
@@ -555,6 +570,23 @@ mod tests {
         assert_eq!(m.stats().packets_sent, 1);
         assert_eq!(m.stats().deliveries, 1);
         assert_eq!(m.next_packet_time(), None);
+    }
+
+    #[test]
+    fn long_runs_reuse_transmission_slots() {
+        let p = quiet();
+        let mut m = RadioMedium::new(p.clone(), 1);
+        let a = m.add_node((0.0, 0.0));
+        let b = m.add_node((1.0, 0.0));
+        let period = 10 * p.pipeline_latency_ns(8);
+        for k in 0..2_000u64 {
+            let t = k * period;
+            m.write(a, t, &[k as u8; 8]);
+            m.step(t + period - 1);
+            assert_eq!(m.read(b, t + period - 1).len(), 8);
+        }
+        assert_eq!(m.stats().packets_sent, 2_000);
+        assert!(m.air.len() < 16, "transmission table grew to {}", m.air.len());
     }
 
     #[test]

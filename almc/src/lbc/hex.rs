@@ -49,7 +49,7 @@ fn hex_digits(token: &str) -> Result<Vec<u8>, InputError> {
                 token: token.to_owned(),
             });
     }
-    if digits.len() % 2 != 0 {
+    if !digits.len().is_multiple_of(2) {
         return Err(InputError::OddLength {
             token: token.to_owned(),
         });
