@@ -36,7 +36,7 @@ const DEBIAN_LINKER: &str = "ld.lld-16";
 /// Environment variable cargo reads the target's linker from.
 const LINKER_VAR: &str = "CARGO_TARGET_RISCV32IMA_UNKNOWN_NONE_ELF_LINKER";
 /// Name of the firmware binary.
-const BIN: &str = "ubc-app";
+pub const BIN: &str = "ubc-app";
 
 /// Section sizes of a firmware image, in bytes, as `size` (Berkeley format) counts them:
 /// `text` is code plus read-only data, `data` initialised writable data, `bss` zeroed data
@@ -65,19 +65,41 @@ pub fn app_dir() -> PathBuf {
     crate::workspace_root().join("ubc-app")
 }
 
-/// Where `build` leaves the ELF for `board`.
-pub fn elf_path(board: &str, release: bool) -> PathBuf {
-    app_dir()
-        .join("target")
-        .join(board)
+/// The target dir of a build: one per board and extra feature set, so that switching between
+/// the program and a test or benchmark variant never rebuilds the other.
+fn target_dir(board: &str, features: &[&str]) -> PathBuf {
+    let mut name = board.to_string();
+    for f in features {
+        name.push('+');
+        name.push_str(f);
+    }
+    app_dir().join("target").join(name)
+}
+
+/// Where `build_features` leaves the ELF of `bin` built with extra `features` (`build`:
+/// `bin` = `ubc-app`, no extra features).
+fn features_elf_path(board: &str, bin: &str, features: &[&str], release: bool) -> PathBuf {
+    target_dir(board, features)
         .join(TARGET)
         .join(if release { "release" } else { "debug" })
-        .join(BIN)
+        .join(bin)
 }
 
 /// Builds the firmware for `board`, prints its section sizes and, as the last line, the
 /// absolute path of the ELF, which it returns.
 pub fn build(board: &str, release: bool) -> Result<PathBuf> {
+    build_bin(board, BIN, release)
+}
+
+/// Builds binary `bin` of `ubc-app` (the firmware or a benchmark program such as
+/// `bench_lbc_decode`) for `board`, like [`build`].
+pub fn build_bin(board: &str, bin: &str, release: bool) -> Result<PathBuf> {
+    build_features(board, bin, &[], release)
+}
+
+/// Builds binary `bin` for `board` with extra cargo `features` of `ubc-app` (for example
+/// `echo-test`, the UART echo test mode the QEMU acceptance tests use), like [`build`].
+pub fn build_features(board: &str, bin: &str, features: &[&str], release: bool) -> Result<PathBuf> {
     if !BOARDS.contains(&board) {
         bail!(
             "unknown board `{board}`; known boards: {}",
@@ -86,7 +108,12 @@ pub fn build(board: &str, release: bool) -> Result<PathBuf> {
     }
     let toolchain = pick_toolchain()?;
     let app = app_dir();
-    let target_dir = app.join("target").join(board);
+    let target_dir = target_dir(board, features);
+    let mut feature_list = board.to_string();
+    for f in features {
+        feature_list.push(',');
+        feature_list.push_str(f);
+    }
     let mut cmd = match toolchain {
         Toolchain::Rustup => {
             let mut cmd = clean_command("cargo", false);
@@ -104,13 +131,21 @@ pub fn build(board: &str, release: bool) -> Result<PathBuf> {
         }
     };
     cmd.current_dir(&app)
-        .args(["--target", TARGET, "--features", board, "--target-dir"])
+        .args([
+            "--target",
+            TARGET,
+            "--features",
+            &feature_list,
+            "--bin",
+            bin,
+            "--target-dir",
+        ])
         .arg(&target_dir);
     if release {
         cmd.arg("--release");
     }
     eprintln!(
-        "xtask: building firmware for {board} ({}, {:?} toolchain)",
+        "xtask: building {bin} for {feature_list} ({}, {:?} toolchain)",
         if release { "release" } else { "debug" },
         toolchain
     );
@@ -118,9 +153,9 @@ pub fn build(board: &str, release: bool) -> Result<PathBuf> {
         .status()
         .with_context(|| format!("running {:?}", cmd.get_program()))?;
     if !status.success() {
-        bail!("firmware build for {board} failed ({status})");
+        bail!("{bin} build for {board} failed ({status})");
     }
-    let elf = elf_path(board, release);
+    let elf = features_elf_path(board, bin, features, release);
     let elf = elf
         .canonicalize()
         .with_context(|| format!("firmware ELF missing at {}", elf.display()))?;
@@ -335,9 +370,15 @@ mod tests {
 
     #[test]
     fn elf_path_layout() {
-        let p = elf_path("qemu_virt", true);
+        let p = features_elf_path("qemu_virt", BIN, &[], true);
         assert!(p.ends_with("ubc-app/target/qemu_virt/riscv32ima-unknown-none-elf/release/ubc-app"));
-        assert!(elf_path("qemu_virt", false).ends_with("debug/ubc-app"));
+        assert!(features_elf_path("qemu_virt", BIN, &[], false).ends_with("debug/ubc-app"));
+        assert!(
+            features_elf_path("qemu_virt", "bench_lbc_decode", &[], true)
+                .ends_with("release/bench_lbc_decode")
+        );
+        assert!(features_elf_path("qemu_virt", BIN, &["echo-test"], true)
+            .ends_with("target/qemu_virt+echo-test/riscv32ima-unknown-none-elf/release/ubc-app"));
     }
 
     /// Slow (builds `core` for the target): `cargo test -p xtask -- --ignored firmware_clippy`.

@@ -12,7 +12,6 @@ mod test;
 
 use std::path::PathBuf;
 
-
 use clap::{Parser, Subcommand};
 
 #[derive(Debug, Parser)]
@@ -36,6 +35,10 @@ enum Cmd {
         /// Debug build instead of release.
         #[arg(long)]
         debug: bool,
+        /// Build the UART echo test mode (used by the QEMU acceptance tests) instead of the
+        /// program.
+        #[arg(long)]
+        echo_test: bool,
     },
     /// Boot the firmware in QEMU with its UARTs attached to sockets.
     Qemu(qemu::QemuArgs),
@@ -48,7 +51,14 @@ fn main() {
     let result = match cli.command {
         Cmd::Demo => demo::run(),
         Cmd::Test(args) => test::run(args),
-        Cmd::Fw { board, debug } => fw::build(&board, !debug).map(|_| ()),
+        Cmd::Fw {
+            board,
+            debug,
+            echo_test,
+        } => {
+            let features: &[&str] = if echo_test { &["echo-test"] } else { &[] };
+            fw::build_features(&board, fw::BIN, features, !debug).map(|_| ())
+        }
         Cmd::Qemu(args) => qemu::run(args),
         Cmd::Bench(args) => bench::run(args),
     };
@@ -61,10 +71,7 @@ fn main() {
 /// The workspace root (the parent of xtask/).
 pub fn workspace_root() -> PathBuf {
     let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    manifest
-        .parent()
-        .map(PathBuf::from)
-        .unwrap_or(manifest)
+    manifest.parent().map(PathBuf::from).unwrap_or(manifest)
 }
 
 /// Prints a stage heading.

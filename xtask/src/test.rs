@@ -49,29 +49,48 @@ pub fn run(args: TestArgs) -> Result<()> {
                 (false, format!("{err:#}"))
             }
         };
-        results.push(StageResult { name, ok, seconds, note });
+        results.push(StageResult {
+            name,
+            ok,
+            seconds,
+            note,
+        });
         ok
     };
 
     if !args.no_lint {
         record("rustfmt", &mut || {
             cargo(&["fmt", "--all", "--", "--check"])?;
-            cargo(&["fmt", "--manifest-path", "ubc-app/Cargo.toml", "--", "--check"])?;
+            cargo(&[
+                "fmt",
+                "--manifest-path",
+                "ubc-app/Cargo.toml",
+                "--",
+                "--check",
+            ])?;
             Ok(String::new())
         });
         record("clippy (host)", &mut || {
-            cargo(&["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"])?;
+            cargo(&[
+                "clippy",
+                "--workspace",
+                "--all-targets",
+                "--",
+                "-D",
+                "warnings",
+            ])?;
             Ok(String::new())
         });
     }
 
-    let mut elf = None;
+    let mut elfs = None;
     if !args.no_qemu {
         record("firmware build (qemu_virt)", &mut || {
             install::ensure_qemu()?;
-            let path = fw::build("qemu_virt", true)?;
-            let note = path.display().to_string();
-            elf = Some(path);
+            let program = fw::build("qemu_virt", true)?;
+            let echo = fw::build_features("qemu_virt", fw::BIN, &["echo-test"], true)?;
+            let note = format!("{} (+ echo-test)", program.display());
+            elfs = Some((program, echo));
             Ok(note)
         });
         if !args.no_lint {
@@ -82,9 +101,9 @@ pub fn run(args: TestArgs) -> Result<()> {
     record("host and QEMU tests", &mut || {
         let mut cmd = Command::new(cargo_bin());
         cmd.args(["test", "--workspace"]);
-        match (&elf, args.no_qemu) {
-            (Some(path), _) => {
-                cmd.env("UBC_FW_ELF", path);
+        match (&elfs, args.no_qemu) {
+            (Some((program, echo)), _) => {
+                cmd.env("UBC_FW_ELF", program).env("UBC_FW_ECHO_ELF", echo);
             }
             (None, true) => {
                 cmd.env("UBC_SKIP_QEMU", "1");
@@ -93,7 +112,10 @@ pub fn run(args: TestArgs) -> Result<()> {
         }
         let counts = run_counting(&mut cmd)?;
         totals.add(&counts);
-        Ok(format!("{} passed, {} failed, {} ignored", counts.passed, counts.failed, counts.ignored))
+        Ok(format!(
+            "{} passed, {} failed, {} ignored",
+            counts.passed, counts.failed, counts.ignored
+        ))
     });
 
     record("firmware logic tests (host)", &mut || {
@@ -109,7 +131,10 @@ pub fn run(args: TestArgs) -> Result<()> {
         ]);
         let counts = run_counting(&mut cmd)?;
         totals.add(&counts);
-        Ok(format!("{} passed, {} failed, {} ignored", counts.passed, counts.failed, counts.ignored))
+        Ok(format!(
+            "{} passed, {} failed, {} ignored",
+            counts.passed, counts.failed, counts.ignored
+        ))
     });
 
     if args.fuzz_seconds > 0 {
@@ -127,11 +152,7 @@ pub fn run(args: TestArgs) -> Result<()> {
         );
     }
     let failed: Vec<&str> = results.iter().filter(|r| !r.ok).map(|r| r.name).collect();
-    println!(
-        "tests: {} passed, {} failed",
-        totals.passed,
-        totals.failed
-    );
+    println!("tests: {} passed, {} failed", totals.passed, totals.failed);
     if !failed.is_empty() {
         bail!("failed stages: {}", failed.join(", "));
     }
@@ -232,7 +253,15 @@ fn fuzz_smoke(seconds: u32) -> Result<String> {
     for target in &targets {
         let max_time = format!("-max_total_time={seconds}");
         let status = Command::new("cargo")
-            .args(["+nightly", "fuzz", "run", target, "--", &max_time, "-max_len=512"])
+            .args([
+                "+nightly",
+                "fuzz",
+                "run",
+                target,
+                "--",
+                &max_time,
+                "-max_len=512",
+            ])
             .current_dir(workspace_root())
             .env_remove("RUSTC")
             .env_remove("RUSTDOC")
