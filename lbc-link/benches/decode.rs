@@ -39,8 +39,8 @@ fn sample(i: usize) -> StreamSample {
         chip_status: Some(ChipStatus {
             temperature: ChipTemperature::new((i % 128) as u8).unwrap(),
             warnings: Warnings {
-                battery_low: i % 2 == 0,
-                over_temperature: i % 3 == 0,
+                battery_low: i.is_multiple_of(2),
+                over_temperature: i.is_multiple_of(3),
             },
         }),
         target_position: Some(pos),

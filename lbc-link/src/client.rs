@@ -299,9 +299,10 @@ impl Client {
 
     /// Processes received bytes and timeouts at `now`; reports events to `on_event`.
     pub fn poll<F: FnMut(Event)>(&mut self, now: Instant, rx: &[u8], mut on_event: F) {
-        for &byte in rx {
-            let parsed = match self.deframer.push(byte) {
-                None => continue,
+        let mut input = rx;
+        while !input.is_empty() {
+            let parsed = match self.deframer.push_slice(&mut input) {
+                None => break,
                 Some(Ok(msg)) => Ok(LbcMessage::parse(&msg)),
                 Some(Err(e)) => Err(e),
             };

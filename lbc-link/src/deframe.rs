@@ -6,7 +6,7 @@
 //! fit is reported as a typed [`DeframeError`] and counted in [`DeframerStats`].
 
 use crate::header::TERMINATOR;
-use crate::wire::{checksum, RawMessage, MAX_DATA_LEN};
+use crate::wire::{RawMessage, MAX_DATA_LEN};
 
 /// A framing problem found in the byte stream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -88,6 +88,9 @@ pub struct Deframer {
     // data bytes followed by the checksum byte
     buf: [u8; MAX_DATA_LEN + 1],
     len: usize,
+    // XOR of the header and every byte in `buf`, kept as bytes arrive so that the
+    // checksum needs no second pass over the message
+    sum: u8,
     stats: DeframerStats,
 }
 
@@ -105,6 +108,7 @@ impl Deframer {
             state: State::Idle,
             buf: [0; MAX_DATA_LEN + 1],
             len: 0,
+            sum: 0,
             stats: DeframerStats {
                 frames: 0,
                 garbage_bytes: 0,
@@ -140,6 +144,47 @@ impl Deframer {
         Some(Err(e))
     }
 
+    /// Feeds bytes from the front of `input` up to the first one that completes a message
+    /// or an error, which it returns, and advances `input` past the bytes consumed. `None`
+    /// means `input` was used up. The results are exactly those of [`push`](Self::push)
+    /// on each byte, but a run of data bytes inside a message is copied in one go, which
+    /// makes this the cheaper way to feed a received block.
+    pub fn push_slice(
+        &mut self,
+        input: &mut &[u8],
+    ) -> Option<Result<RawMessage<'_>, DeframeError>> {
+        loop {
+            if let State::InMessage { .. } = self.state {
+                let room = self.buf.get_mut(self.len..).unwrap_or_default();
+                let mut copied = 0;
+                let mut sum = self.sum;
+                for (slot, &byte) in room.iter_mut().zip(input.iter()) {
+                    if byte > 0x7F {
+                        break;
+                    }
+                    *slot = byte;
+                    sum ^= byte;
+                    copied += 1;
+                }
+                self.sum = sum;
+                self.len += copied;
+                *input = input.get(copied..).unwrap_or_default();
+            }
+            let (&byte, rest) = input.split_first()?;
+            *input = rest;
+            let quiet = match (self.state, byte) {
+                (State::Idle | State::Skipping, 0x80..=0xFE) | (State::Skipping, _) => true,
+                (State::InMessage { .. }, 0x00..=0x7F) => self.len < self.buf.len(),
+                _ => false,
+            };
+            if !quiet {
+                return self.push(byte);
+            }
+            let none = self.push(byte);
+            debug_assert!(none.is_none());
+        }
+    }
+
     /// Feeds one byte; returns a message or an error when one completes.
     pub fn push(&mut self, byte: u8) -> Option<Result<RawMessage<'_>, DeframeError>> {
         match (self.state, byte) {
@@ -148,6 +193,7 @@ impl Deframer {
             (State::Idle | State::Skipping, header @ 0x80..=0xFE) => {
                 self.state = State::InMessage { header };
                 self.len = 0;
+                self.sum = header;
                 None
             }
             (State::Skipping, TERMINATOR) => {
@@ -162,7 +208,8 @@ impl Deframer {
                     return self.fail(DeframeError::MissingChecksum { header });
                 }
                 let got = self.buf[len - 1];
-                let expected = checksum(header, &self.buf[..len - 1]);
+                // `sum` covers the header, the data and the checksum byte itself.
+                let expected = (self.sum ^ got) & 0x7F;
                 if expected != got {
                     return self.fail(DeframeError::ChecksumMismatch {
                         header,
@@ -180,6 +227,7 @@ impl Deframer {
                 let received = self.len;
                 self.state = State::InMessage { header: new };
                 self.len = 0;
+                self.sum = new;
                 self.fail(DeframeError::Truncated {
                     header: old,
                     received,
@@ -193,6 +241,7 @@ impl Deframer {
                 }
                 self.buf[self.len] = data;
                 self.len += 1;
+                self.sum ^= data;
                 None
             }
         }
@@ -202,6 +251,7 @@ impl Deframer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::checksum;
     use proptest::prelude::*;
     use std::vec::Vec;
 
@@ -302,7 +352,79 @@ mod tests {
         assert_eq!(run(&mut d, &bytes), [Out::Msg(0xFC, data.to_vec())]);
     }
 
+    /// Feeds `bytes` through `push_slice`, collecting what it returns.
+    fn run_slices(d: &mut Deframer, bytes: &[u8]) -> Vec<Out> {
+        let mut out = Vec::new();
+        let mut input = bytes;
+        while !input.is_empty() {
+            match d.push_slice(&mut input) {
+                Some(Ok(m)) => out.push(Out::Msg(m.header, m.data.to_vec())),
+                Some(Err(e)) => out.push(Out::Err(e)),
+                None => assert!(input.is_empty()),
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn push_slice_stops_after_each_result() {
+        let mut d = Deframer::new();
+        let mut input: &[u8] = &[0xE8, 0x68, 0xFF, 0x11, 0xE8, 0x05];
+        let first = d.push_slice(&mut input).map(|r| r.map(|m| m.header));
+        assert_eq!(first, Some(Ok(0xE8)));
+        assert_eq!(input, &[0x11, 0xE8, 0x05]);
+        assert_eq!(
+            d.push_slice(&mut input).map(|r| r.map(|m| m.header)),
+            Some(Err(DeframeError::Garbage { byte: 0x11 }))
+        );
+        assert!(d.push_slice(&mut input).is_none());
+        assert!(input.is_empty());
+        assert!(d.in_message());
+    }
+
     proptest! {
+        #[test]
+        fn push_slice_matches_push(
+            chunks in proptest::collection::vec(
+                proptest::collection::vec(
+                    prop_oneof![Just(0xFFu8), Just(0xFCu8), 0u8..0x80, any::<u8>()],
+                    0..90,
+                ),
+                0..6,
+            )
+        ) {
+            let mut one = Deframer::new();
+            let mut bulk = Deframer::new();
+            let mut expected = Vec::new();
+            let mut got = Vec::new();
+            for chunk in &chunks {
+                expected.extend(run(&mut one, chunk));
+                got.extend(run_slices(&mut bulk, chunk));
+            }
+            prop_assert_eq!(got, expected);
+            prop_assert_eq!(bulk.stats(), one.stats());
+            prop_assert_eq!(bulk.in_message(), one.in_message());
+        }
+
+        /// The running checksum equals `wire::checksum`, for good and bad checksum bytes.
+        #[test]
+        fn checksum_is_checked(
+            header in 0x80u8..0xFF,
+            data in proptest::collection::vec(0u8..0x80, 0..MAX_DATA_LEN),
+            got in 0u8..0x80,
+        ) {
+            let expected = checksum(header, &data);
+            let mut bytes = vec![header];
+            bytes.extend_from_slice(&data);
+            bytes.extend([got, 0xFF]);
+            let want = if got == expected {
+                Out::Msg(header, data.clone())
+            } else {
+                Out::Err(DeframeError::ChecksumMismatch { header, expected, got })
+            };
+            prop_assert_eq!(run(&mut Deframer::new(), &bytes), vec![want]);
+        }
+
         #[test]
         fn never_panics_and_resynchronises(garbage in proptest::collection::vec(any::<u8>(), 0..300)) {
             let mut d = Deframer::new();

@@ -4,19 +4,34 @@
 //! message (header 0xFC) carries the enabled variables in ascending number order,
 //! packed like any other data. Bits 5..7, 13, 14 and 21 are NOT IN USE (mask
 //! 0x002060E0); a format with any of them set is invalid.
+//!
+//! Every variable is 14 or 28 bits wide, so STREAM data is a whole number of 14-bit units,
+//! each exactly two 7-bit data bytes (high bits first) with no padding. Decoding reads
+//! those byte pairs directly instead of going through the general bit reader: this is the
+//! receive hot path of the UBC (see `docs/benchmarks.md`).
 
 use crate::fields::{
     ChipStatus, Heading, Position, RangeError, SteerVelocity, SteeringAngle, Velocity, XCoord,
     YCoord, I14, I28, U14,
 };
 use crate::header::STREAM;
-use crate::pack::{BitReader, BitWriter, UnpackError};
+use crate::pack::{sign_extend, BitWriter};
 use crate::wire::{emit_frame, pack_error, EncodeError};
 
 /// Format bits that must never be set (NOT IN USE rows of Table 3-4).
 pub const NOT_IN_USE_MASK: u32 = 0x0020_60E0;
 /// Width of the format word.
 pub const FORMAT_BITS: u8 = 28;
+/// Format bits of the 28-bit variables (two 14-bit units each); the rest are 14 bits wide.
+const WIDE_MASK: u32 = (1 << SystemVariable::Position as u32)
+    | (1 << SystemVariable::SteerVelocity as u32)
+    | (1 << SystemVariable::AdcGyroPitchRoll as u32)
+    | (1 << SystemVariable::TargetPosition as u32)
+    | (1 << SystemVariable::TargetSteerVelocity as u32)
+    | (1 << SystemVariable::MotorPdError as u32)
+    | (1 << SystemVariable::MotorIError as u32);
+/// Bits of one unit on the wire.
+const UNIT_BITS: usize = 14;
 
 /// Which system variables a STREAM message carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -71,7 +86,12 @@ impl StreamFormat {
     /// Data bits of a STREAM message in this format.
     #[must_use]
     pub fn data_bits(self) -> usize {
-        self.variables().map(|v| usize::from(v.width())).sum()
+        UNIT_BITS * self.units()
+    }
+
+    /// 14-bit units of a STREAM message in this format.
+    const fn units(self) -> usize {
+        (self.0.count_ones() + (self.0 & WIDE_MASK).count_ones()) as usize
     }
 
     /// Data bytes of a STREAM message in this format.
@@ -140,8 +160,33 @@ impl SystemVariable {
 
     /// The variable with number `n`, if it is in use.
     #[must_use]
-    pub fn from_number(n: u8) -> Option<Self> {
-        Self::ALL.iter().copied().find(|v| *v as u8 == n)
+    pub const fn from_number(n: u8) -> Option<Self> {
+        use SystemVariable as V;
+        Some(match n {
+            0 => V::Id,
+            1 => V::Position,
+            2 => V::SteerVelocity,
+            3 => V::AdjustedYaw,
+            4 => V::Heading,
+            8 => V::AdcSteering,
+            9 => V::AdcRange,
+            10 => V::AdcGyroReference,
+            11 => V::AdcGyroPitchRoll,
+            12 => V::AdcGyroYaw,
+            15 => V::ChipStatus,
+            16 => V::TargetPosition,
+            17 => V::TargetSteerVelocity,
+            18 => V::TargetYaw,
+            19 => V::MotorPdError,
+            20 => V::MotorIError,
+            22 => V::User1,
+            23 => V::User2,
+            24 => V::User3,
+            25 => V::User4,
+            26 => V::User5,
+            27 => V::User6,
+            _ => return None,
+        })
     }
 
     /// Variable number (format bit).
@@ -214,14 +259,45 @@ impl From<RangeError> for StreamError {
     }
 }
 
-fn unpack_error(e: UnpackError) -> StreamError {
-    match e {
-        UnpackError::LengthMismatch { expected, got } => StreamError::Length { expected, got },
-        // The reader was sized from the format, so no other error can occur.
-        UnpackError::OutOfBits | UnpackError::WidthTooLarge { .. } => StreamError::Length {
-            expected: 0,
-            got: 0,
-        },
+/// Reads STREAM data as 14-bit units: byte pairs, 7 data bits each, high bits first.
+#[derive(Debug, Clone)]
+struct Units<'a> {
+    data: &'a [u8],
+}
+
+impl<'a> Units<'a> {
+    /// Checks that `data` holds exactly the units of `format`.
+    fn new(format: StreamFormat, data: &'a [u8]) -> Result<Self, StreamError> {
+        let expected = 2 * format.units();
+        if data.len() != expected {
+            return Err(StreamError::Length {
+                expected,
+                got: data.len(),
+            });
+        }
+        Ok(Self { data })
+    }
+
+    /// The next unit, unsigned.
+    #[inline]
+    fn unit(&mut self) -> Result<u16, StreamError> {
+        match *self.data {
+            [hi, lo, ref rest @ ..] => {
+                self.data = rest;
+                Ok((u16::from(hi & 0x7F) << 7) | u16::from(lo & 0x7F))
+            }
+            // The length was checked against the format, so this is unreachable.
+            _ => Err(StreamError::Length {
+                expected: 2,
+                got: self.data.len(),
+            }),
+        }
+    }
+
+    /// The next unit as 14-bit two's complement.
+    #[inline]
+    fn signed(&mut self) -> Result<i32, StreamError> {
+        Ok(sign_extend(u32::from(self.unit()?), 14))
     }
 }
 
@@ -259,24 +335,41 @@ pub enum SystemValue {
     },
 }
 
-fn read_u14(r: &mut BitReader<'_>) -> Result<u16, StreamError> {
-    Ok(r.read(14).map_err(unpack_error)? as u16)
+fn read_u14(r: &mut Units<'_>) -> Result<u16, StreamError> {
+    r.unit()
 }
 
-fn read_i14(r: &mut BitReader<'_>) -> Result<I14, StreamError> {
-    let v = r.read_signed(14).map_err(unpack_error)?;
+fn read_unsigned(r: &mut Units<'_>) -> Result<U14, StreamError> {
+    Ok(U14::new(r.unit()?)?)
+}
+
+fn read_heading(r: &mut Units<'_>) -> Result<Heading, StreamError> {
+    Ok(Heading::new(r.unit()?)?)
+}
+
+fn read_i28(r: &mut Units<'_>) -> Result<I28, StreamError> {
+    let high = u32::from(r.unit()?);
+    let low = u32::from(r.unit()?);
+    Ok(I28::try_from_i64(i64::from(sign_extend(
+        (high << 14) | low,
+        28,
+    )))?)
+}
+
+fn read_i14(r: &mut Units<'_>) -> Result<I14, StreamError> {
+    let v = r.signed()?;
     Ok(I14::try_from_i64(i64::from(v))?)
 }
 
-fn read_position(r: &mut BitReader<'_>) -> Result<Position, StreamError> {
+fn read_position(r: &mut Units<'_>) -> Result<Position, StreamError> {
     let x = XCoord::new(read_u14(r)?)?;
     let y = YCoord::new(read_u14(r)?)?;
     Ok(Position { x, y })
 }
 
-fn read_steer_velocity(r: &mut BitReader<'_>) -> Result<SteerVelocity, StreamError> {
-    let s = r.read_signed(14).map_err(unpack_error)?;
-    let v = r.read_signed(14).map_err(unpack_error)?;
+fn read_steer_velocity(r: &mut Units<'_>) -> Result<SteerVelocity, StreamError> {
+    let s = r.signed()?;
+    let v = r.signed()?;
     Ok(SteerVelocity {
         steering: SteeringAngle::try_from_i64(i64::from(s))?,
         velocity: Velocity::try_from_i64(i64::from(v))?,
@@ -316,17 +409,17 @@ impl SystemValue {
         }
     }
 
-    fn read(var: SystemVariable, r: &mut BitReader<'_>) -> Result<Self, StreamError> {
+    fn read(var: SystemVariable, r: &mut Units<'_>) -> Result<Self, StreamError> {
         use SystemVariable as V;
         Ok(match var {
-            V::Id => SystemValue::Id(U14::new(read_u14(r)?)?),
+            V::Id => SystemValue::Id(read_unsigned(r)?),
             V::Position => SystemValue::Position(read_position(r)?),
             V::SteerVelocity => SystemValue::SteerVelocity(read_steer_velocity(r)?),
-            V::AdjustedYaw => SystemValue::AdjustedYaw(Heading::new(read_u14(r)?)?),
-            V::Heading => SystemValue::Heading(Heading::new(read_u14(r)?)?),
-            V::AdcSteering => SystemValue::AdcSteering(U14::new(read_u14(r)?)?),
-            V::AdcRange => SystemValue::AdcRange(U14::new(read_u14(r)?)?),
-            V::AdcGyroReference => SystemValue::AdcGyroReference(U14::new(read_u14(r)?)?),
+            V::AdjustedYaw => SystemValue::AdjustedYaw(read_heading(r)?),
+            V::Heading => SystemValue::Heading(read_heading(r)?),
+            V::AdcSteering => SystemValue::AdcSteering(read_unsigned(r)?),
+            V::AdcRange => SystemValue::AdcRange(read_unsigned(r)?),
+            V::AdcGyroReference => SystemValue::AdcGyroReference(read_unsigned(r)?),
             V::AdcGyroPitchRoll => SystemValue::AdcGyroPitchRoll {
                 pitch: read_i14(r)?,
                 roll: read_i14(r)?,
@@ -335,18 +428,15 @@ impl SystemValue {
             V::ChipStatus => SystemValue::ChipStatus(ChipStatus::from_bits(read_u14(r)?)),
             V::TargetPosition => SystemValue::TargetPosition(read_position(r)?),
             V::TargetSteerVelocity => SystemValue::TargetSteerVelocity(read_steer_velocity(r)?),
-            V::TargetYaw => SystemValue::TargetYaw(Heading::new(read_u14(r)?)?),
+            V::TargetYaw => SystemValue::TargetYaw(read_heading(r)?),
             V::MotorPdError => SystemValue::MotorPdError {
                 proportional: read_i14(r)?,
                 differential: read_i14(r)?,
             },
-            V::MotorIError => {
-                let v = r.read_signed(28).map_err(unpack_error)?;
-                SystemValue::MotorIError(I28::try_from_i64(i64::from(v))?)
-            }
+            V::MotorIError => SystemValue::MotorIError(read_i28(r)?),
             V::User1 | V::User2 | V::User3 | V::User4 | V::User5 | V::User6 => SystemValue::User {
                 index: var as u8 - V::User1 as u8 + 1,
-                value: U14::new(read_u14(r)?)?,
+                value: read_unsigned(r)?,
             },
         })
     }
@@ -390,7 +480,7 @@ impl SystemValue {
 /// Iterator over the variables of one STREAM message, in stream order.
 #[derive(Debug, Clone)]
 pub struct StreamValues<'a> {
-    reader: BitReader<'a>,
+    reader: Units<'a>,
     remaining: u32,
     failed: bool,
 }
@@ -398,7 +488,7 @@ pub struct StreamValues<'a> {
 impl<'a> StreamValues<'a> {
     /// Checks the data length against `format` and iterates its variables.
     pub fn new(format: StreamFormat, data: &'a [u8]) -> Result<Self, StreamError> {
-        let reader = BitReader::new(data, format.data_bits()).map_err(unpack_error)?;
+        let reader = Units::new(format, data)?;
         Ok(Self {
             reader,
             remaining: format.bits(),
@@ -450,13 +540,71 @@ pub struct StreamSample {
 }
 
 impl StreamSample {
-    /// Decodes STREAM data in `format`.
+    /// Decodes STREAM data in `format`. Same result as collecting [`StreamValues`] with
+    /// [`set`](Self::set), written out variable by variable because it is the receive hot
+    /// path: the reader stays in registers and no intermediate [`SystemValue`] is built.
     pub fn decode(format: StreamFormat, data: &[u8]) -> Result<Self, StreamError> {
-        let mut sample = StreamSample::default();
-        for value in StreamValues::new(format, data)? {
-            sample.set(value?);
+        use SystemVariable as V;
+        let mut r = Units::new(format, data)?;
+        let on = |var: V| format.contains(var);
+        let mut s = StreamSample::default();
+        if on(V::Id) {
+            s.id = Some(read_unsigned(&mut r)?);
         }
-        Ok(sample)
+        if on(V::Position) {
+            s.position = Some(read_position(&mut r)?);
+        }
+        if on(V::SteerVelocity) {
+            s.steer_velocity = Some(read_steer_velocity(&mut r)?);
+        }
+        if on(V::AdjustedYaw) {
+            s.adjusted_yaw = Some(read_heading(&mut r)?);
+        }
+        if on(V::Heading) {
+            s.heading = Some(read_heading(&mut r)?);
+        }
+        if on(V::AdcSteering) {
+            s.adc_steering = Some(read_unsigned(&mut r)?);
+        }
+        if on(V::AdcRange) {
+            s.adc_range = Some(read_unsigned(&mut r)?);
+        }
+        if on(V::AdcGyroReference) {
+            s.adc_gyro_reference = Some(read_unsigned(&mut r)?);
+        }
+        if on(V::AdcGyroPitchRoll) {
+            s.adc_gyro_pitch = Some(read_i14(&mut r)?);
+            s.adc_gyro_roll = Some(read_i14(&mut r)?);
+        }
+        if on(V::AdcGyroYaw) {
+            s.adc_gyro_yaw = Some(read_i14(&mut r)?);
+        }
+        if on(V::ChipStatus) {
+            s.chip_status = Some(ChipStatus::from_bits(r.unit()?));
+        }
+        if on(V::TargetPosition) {
+            s.target_position = Some(read_position(&mut r)?);
+        }
+        if on(V::TargetSteerVelocity) {
+            s.target_steer_velocity = Some(read_steer_velocity(&mut r)?);
+        }
+        if on(V::TargetYaw) {
+            s.target_yaw = Some(read_heading(&mut r)?);
+        }
+        if on(V::MotorPdError) {
+            s.motor_p_error = Some(read_i14(&mut r)?);
+            s.motor_d_error = Some(read_i14(&mut r)?);
+        }
+        if on(V::MotorIError) {
+            s.motor_i_error = Some(read_i28(&mut r)?);
+        }
+        let first_user = V::User1 as u32;
+        for (i, slot) in (first_user..).zip(s.user.iter_mut()) {
+            if format.bits() & (1 << i) != 0 {
+                *slot = Some(read_unsigned(&mut r)?);
+            }
+        }
+        Ok(s)
     }
 
     /// Stores one value.
@@ -557,8 +705,9 @@ impl StreamSample {
 /// many decoded cleanly. Meant for on-target benchmarks (count cycles around it).
 pub fn decode_all(bytes: &[u8], deframer: &mut crate::Deframer, format: StreamFormat) -> usize {
     let mut decoded = 0;
-    for &b in bytes {
-        if let Some(Ok(msg)) = deframer.push(b) {
+    let mut input = bytes;
+    while !input.is_empty() {
+        if let Some(Ok(msg)) = deframer.push_slice(&mut input) {
             if msg.header == STREAM && StreamSample::decode(format, msg.data).is_ok() {
                 decoded += 1;
             }
@@ -708,7 +857,55 @@ pub(crate) mod tests {
         any::<u32>().prop_map(|b| StreamFormat::new(b & StreamFormat::ALL.bits()).unwrap())
     }
 
+    #[test]
+    fn unit_counts_match_widths() {
+        for bits in [0, 1, 0b110, StreamFormat::ALL.bits(), 1 << 20, 1 << 27] {
+            let format = StreamFormat::new(bits).unwrap();
+            let widths: usize = format.variables().map(|v| usize::from(v.width())).sum();
+            assert_eq!(format.data_bits(), widths, "{bits:#x}");
+        }
+    }
+
+    #[test]
+    fn negative_integral_error_decodes() {
+        let format = StreamFormat::EMPTY.with(SystemVariable::MotorIError);
+        // -2 in 28 bits: 0xFFFFFFE, units 0x3FFF and 0x3FFE.
+        let data = [0x7F, 0x7F, 0x7F, 0x7E];
+        let sample = StreamSample::decode(format, &data).unwrap();
+        assert_eq!(sample.motor_i_error, Some(I28::new(-2).unwrap()));
+    }
+
     proptest! {
+        /// The 14-bit unit reader agrees with the general bit reader on any bytes.
+        #[test]
+        fn units_match_bit_reader(data in proptest::collection::vec(any::<u8>(), 0..30)) {
+            let data = &data[..data.len() & !1];
+            let mut reader = crate::pack::BitReader::new(data, 7 * data.len()).unwrap();
+            let mut units = Units { data };
+            for _ in 0..data.len() / 2 {
+                prop_assert_eq!(u32::from(units.unit().unwrap()), reader.read(14).unwrap());
+            }
+            prop_assert!(units.unit().is_err());
+        }
+
+        /// `decode` and the `StreamValues` iterator agree on any data, errors included.
+        #[test]
+        fn decode_matches_values(
+            format in arb_format(),
+            bytes in proptest::collection::vec(0u8..0x80, 58),
+            extra in 0usize..2,
+        ) {
+            let data = &bytes[..(format.data_len() + extra).min(bytes.len())];
+            let via_values = StreamValues::new(format, data).and_then(|values| {
+                let mut sample = StreamSample::default();
+                for value in values {
+                    sample.set(value?);
+                }
+                Ok(sample)
+            });
+            prop_assert_eq!(StreamSample::decode(format, data), via_values);
+        }
+
         #[test]
         fn stream_round_trips(sample in arb_full_sample(), format in arb_format()) {
             let mut buf = [0u8; crate::wire::MAX_FRAME_LEN];

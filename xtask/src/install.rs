@@ -28,7 +28,9 @@ pub fn debian_package_installed(pkg: &str) -> bool {
     Command::new("dpkg-query")
         .args(["-W", "-f=${Status}", pkg])
         .output()
-        .map(|out| out.status.success() && String::from_utf8_lossy(&out.stdout).ends_with("installed"))
+        .map(|out| {
+            out.status.success() && String::from_utf8_lossy(&out.stdout).ends_with("installed")
+        })
         .unwrap_or(false)
 }
 
@@ -63,7 +65,10 @@ pub fn ensure_debian_packages(pkgs: &[&str]) -> Result<()> {
     if !running_as_root() {
         bail!("missing Debian packages {missing:?}; install them with:\n    sudo apt-get update && sudo {line}");
     }
-    eprintln!("xtask: installing missing Debian packages: {}", missing.join(" "));
+    eprintln!(
+        "xtask: installing missing Debian packages: {}",
+        missing.join(" ")
+    );
     apt_update_once()?;
     let status = Command::new("apt-get")
         .args(["install", "-y", "--no-install-recommends"])
