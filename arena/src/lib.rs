@@ -4,6 +4,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod camera;
 pub mod hub;
 pub mod radio_medium;
 pub mod radio_sim;
