@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod car;
 mod ground;
 mod lbc;
 mod lbc_emu;
@@ -30,6 +31,8 @@ enum Group {
     /// Ground-station radio tools: raw authenticated requests, the simulated radio hub.
     #[command(subcommand)]
     Radio(radio::RadioCommand),
+    /// Console of one car's UBC program over the radio: LBC commands, status, maneuvers.
+    Car(car::CarArgs),
 }
 
 fn main() -> ExitCode {
@@ -38,5 +41,6 @@ fn main() -> ExitCode {
         Group::LbcEmu(args) => lbc_emu::run(args),
         Group::Cars(args) => radio::run_cars(args),
         Group::Radio(cmd) => radio::run(cmd),
+        Group::Car(args) => car::run(&args),
     }
 }

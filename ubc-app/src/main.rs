@@ -1,5 +1,6 @@
-//! UBC firmware. Brings the board up, logs a banner over defmt and, until the real program
-//! exists, runs the test mode (see [`test_mode`]) that the QEMU harness checks.
+//! UBC firmware. Brings the board up, logs a banner over defmt and runs the UBC program
+//! (`run`, on top of the library's `program`), or with the `echo-test` feature the UART echo
+//! test mode (`test_mode`) that the QEMU driver acceptance tests check.
 //!
 //! Built once per board, selected by a cargo feature (`qemu_virt`); `cargo xtask fw` builds it.
 
@@ -7,6 +8,9 @@
 #![no_main]
 #![forbid(unsafe_code)]
 
+#[cfg(not(feature = "echo-test"))]
+mod run;
+#[cfg(feature = "echo-test")]
 mod test_mode;
 
 #[cfg(feature = "qemu_virt")]
@@ -50,7 +54,14 @@ fn main() -> ! {
         (Err(e), _) => defmt::warn!("radio uart unavailable: {}", e),
         _ => {}
     }
-    test_mode::run(board)
+    #[cfg(feature = "echo-test")]
+    {
+        test_mode::run(board)
+    }
+    #[cfg(not(feature = "echo-test"))]
+    {
+        run::run(board)
+    }
 }
 
 #[panic_handler]
@@ -58,7 +69,29 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     static PANICKING: AtomicBool = AtomicBool::new(false);
     // A panic while reporting a panic (e.g. inside the logger) must not recurse.
     if !PANICKING.swap(true, Ordering::AcqRel) {
-        defmt::error!("panic: {}", defmt::Display2Format(info));
+        log_panic(info);
     }
     board::exit_device().fail(EXIT_PANIC)
+}
+
+/// The echo test mode reports the full message (the harness checks it).
+#[cfg(feature = "echo-test")]
+fn log_panic(info: &core::panic::PanicInfo) {
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+}
+
+/// The program reports the message when it is plain text, and the location; formatting a
+/// message with arguments would pull `core::fmt` (several KiB) into the image.
+#[cfg(not(feature = "echo-test"))]
+fn log_panic(info: &core::panic::PanicInfo) {
+    let message = info.message().as_str().unwrap_or("(formatted message)");
+    match info.location() {
+        Some(l) => defmt::error!(
+            "panic: {=str} at {=str}:{=u32}",
+            message,
+            l.file(),
+            l.line()
+        ),
+        None => defmt::error!("panic: {=str}", message),
+    }
 }

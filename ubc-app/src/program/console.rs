@@ -1,0 +1,858 @@
+//! The user's console over the radio: typed request and reply payloads.
+//!
+//! A console request travels as a radio-mac command (authenticated by the ground station's
+//! key); the radio-mac tag says which request it is ([`Tag`]) and the payload starts with the
+//! format version [`VERSION`]. The car answers with a radio-mac reply carrying the same tag
+//! and a payload `[VERSION, result, body...]`. LBC commands and replies are carried as
+//! complete LBC messages (header, packed data, checksum, terminator; seed 3.2) so that any
+//! tool speaking the LBC protocol can build and read them. Multi-byte integers are
+//! little-endian. The field tables are in `docs/ubc-app.md`.
+
+use heapless::Vec;
+use lbc_link::wire::{Frame, FrameError};
+use lbc_link::{Command, CommandKind, LbcMessage, Reply as LbcReply};
+
+/// Version byte opening every request and reply payload.
+pub const VERSION: u8 = 1;
+/// Largest console payload (radio-mac's `MAX_PAYLOAD`).
+pub const MAX_PAYLOAD: usize = radio_mac::MAX_PAYLOAD;
+/// Largest number of points in one go-to maneuver.
+pub const MAX_POINTS: usize = 7;
+/// Counters in one statistics page.
+pub const STATS_PER_PAGE: usize = 7;
+/// Statistics pages (see [`StatsPage`]).
+pub const STATS_PAGES: u8 = 4;
+
+/// Radio-mac tags of console requests (and of their replies).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum Tag {
+    /// Forward one LBC command and return its outcome.
+    Lbc = 0x01,
+    /// Vehicle and program status.
+    Status = 0x02,
+    /// Set the stream format the program asks of the LBC.
+    StreamFormat = 0x03,
+    /// Start a go-to-points maneuver.
+    ManeuverStart = 0x04,
+    /// Stop the maneuver (and the car).
+    ManeuverStop = 0x05,
+    /// One page of counters.
+    Stats = 0x06,
+    /// Car to ground station: something the user should know (sent as a radio-mac request).
+    Notice = 0x10,
+}
+
+impl Tag {
+    /// The tag with this value.
+    #[must_use]
+    pub fn from_u8(v: u8) -> Option<Self> {
+        Some(match v {
+            0x01 => Tag::Lbc,
+            0x02 => Tag::Status,
+            0x03 => Tag::StreamFormat,
+            0x04 => Tag::ManeuverStart,
+            0x05 => Tag::ManeuverStop,
+            0x06 => Tag::Stats,
+            0x10 => Tag::Notice,
+            _ => return None,
+        })
+    }
+}
+
+/// Why a console payload could not be decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DecodeError {
+    /// The payload is empty (no version byte).
+    Empty,
+    /// A version this program does not speak.
+    UnsupportedVersion { got: u8 },
+    /// A tag this program does not know.
+    UnknownTag { tag: u8 },
+    /// The body has the wrong length.
+    Length {
+        tag: u8,
+        expected: usize,
+        got: usize,
+    },
+    /// A field is out of range.
+    Field { tag: u8, offset: usize },
+    /// An unknown result code.
+    UnknownResult { code: u8 },
+    /// The carried LBC message is not a well-formed frame.
+    LbcFrame(FrameError),
+    /// The carried LBC message is framed but not a valid message of the expected kind.
+    LbcMessage(lbc_link::DecodeError),
+}
+
+/// Why a payload could not be written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EncodeError {
+    /// The output buffer is too small.
+    BufferTooSmall { needed: usize },
+    /// The carried LBC message could not be written.
+    Lbc(lbc_link::EncodeError),
+    /// A field is out of range (e.g. more than [`MAX_POINTS`] points).
+    Field,
+}
+
+/// A point of a go-to maneuver, in tracking units.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Point {
+    /// X, 0..=640.
+    pub x: u16,
+    /// Y, 0..=960.
+    pub y: u16,
+}
+
+/// Points of a go-to maneuver.
+pub type Points = Vec<Point, MAX_POINTS>;
+
+/// A console request (ground station to car).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Request {
+    /// Issue this LBC command.
+    Lbc(Command),
+    /// Report [`Status`].
+    Status,
+    /// Stream these variables (28-bit format word) in addition to the ones the program needs.
+    StreamFormat(u32),
+    /// Drive through these points in order, then stop.
+    ManeuverStart(Points),
+    /// Abort the maneuver and stop.
+    ManeuverStop,
+    /// Report one [`StatsPage`].
+    Stats(u8),
+}
+
+fn put(out: &mut [u8], at: usize, bytes: &[u8]) -> Result<(), EncodeError> {
+    let end = at + bytes.len();
+    out.get_mut(at..end)
+        .ok_or(EncodeError::BufferTooSmall { needed: end })?
+        .copy_from_slice(bytes);
+    Ok(())
+}
+
+fn u16_at(b: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([b[at], b[at + 1]])
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+fn body(payload: &[u8]) -> Result<&[u8], DecodeError> {
+    match payload.split_first() {
+        None => Err(DecodeError::Empty),
+        Some((&VERSION, rest)) => Ok(rest),
+        Some((&got, _)) => Err(DecodeError::UnsupportedVersion { got }),
+    }
+}
+
+fn expect_len(tag: Tag, body: &[u8], expected: usize) -> Result<(), DecodeError> {
+    if body.len() == expected {
+        Ok(())
+    } else {
+        Err(DecodeError::Length {
+            tag: tag as u8,
+            expected,
+            got: body.len(),
+        })
+    }
+}
+
+fn lbc_frame(bytes: &[u8]) -> Result<(u8, &[u8]), DecodeError> {
+    Frame::new_checked(bytes).map_err(DecodeError::LbcFrame)?;
+    // A checked frame is header, data, checksum, terminator.
+    Ok((bytes[0], &bytes[1..bytes.len() - 2]))
+}
+
+impl Request {
+    /// The radio-mac tag.
+    #[must_use]
+    pub fn tag(&self) -> Tag {
+        match self {
+            Request::Lbc(_) => Tag::Lbc,
+            Request::Status => Tag::Status,
+            Request::StreamFormat(_) => Tag::StreamFormat,
+            Request::ManeuverStart(_) => Tag::ManeuverStart,
+            Request::ManeuverStop => Tag::ManeuverStop,
+            Request::Stats(_) => Tag::Stats,
+        }
+    }
+
+    /// Writes the payload; returns its length.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        put(out, 0, &[VERSION])?;
+        let len = match self {
+            Request::Lbc(cmd) => {
+                let dst = out
+                    .get_mut(1..)
+                    .ok_or(EncodeError::BufferTooSmall { needed: 2 })?;
+                1 + cmd.emit(dst).map_err(EncodeError::Lbc)?
+            }
+            Request::Status | Request::ManeuverStop => 1,
+            Request::StreamFormat(bits) => {
+                put(out, 1, &bits.to_le_bytes())?;
+                5
+            }
+            Request::ManeuverStart(points) => {
+                put(out, 1, &[points.len() as u8])?;
+                for (i, p) in points.iter().enumerate() {
+                    put(out, 2 + 4 * i, &p.x.to_le_bytes())?;
+                    put(out, 4 + 4 * i, &p.y.to_le_bytes())?;
+                }
+                2 + 4 * points.len()
+            }
+            Request::Stats(page) => {
+                put(out, 1, &[*page])?;
+                2
+            }
+        };
+        if len > MAX_PAYLOAD {
+            return Err(EncodeError::Field);
+        }
+        Ok(len)
+    }
+
+    /// Reads a request from its radio-mac tag and payload.
+    pub fn decode(tag: u8, payload: &[u8]) -> Result<Self, DecodeError> {
+        let t = Tag::from_u8(tag).ok_or(DecodeError::UnknownTag { tag })?;
+        let b = body(payload)?;
+        Ok(match t {
+            Tag::Lbc => {
+                let (header, data) = lbc_frame(b)?;
+                Request::Lbc(Command::decode(header, data).map_err(DecodeError::LbcMessage)?)
+            }
+            Tag::Status => {
+                expect_len(t, b, 0)?;
+                Request::Status
+            }
+            Tag::ManeuverStop => {
+                expect_len(t, b, 0)?;
+                Request::ManeuverStop
+            }
+            Tag::StreamFormat => {
+                expect_len(t, b, 4)?;
+                Request::StreamFormat(u32_at(b, 0))
+            }
+            Tag::ManeuverStart => {
+                let n = usize::from(*b.first().ok_or(DecodeError::Length {
+                    tag,
+                    expected: 1,
+                    got: 0,
+                })?);
+                if n == 0 || n > MAX_POINTS {
+                    return Err(DecodeError::Field { tag, offset: 0 });
+                }
+                expect_len(t, b, 1 + 4 * n)?;
+                let mut points = Points::new();
+                for i in 0..n {
+                    let p = Point {
+                        x: u16_at(b, 1 + 4 * i),
+                        y: u16_at(b, 3 + 4 * i),
+                    };
+                    if p.x > 640 || p.y > 960 {
+                        return Err(DecodeError::Field {
+                            tag,
+                            offset: 1 + 4 * i,
+                        });
+                    }
+                    // Cannot fail: n <= MAX_POINTS.
+                    let _ = points.push(p);
+                }
+                Request::ManeuverStart(points)
+            }
+            Tag::Stats => {
+                expect_len(t, b, 1)?;
+                Request::Stats(b[0])
+            }
+            Tag::Notice => return Err(DecodeError::UnknownTag { tag }),
+        })
+    }
+}
+
+/// Why the program did not carry out a request (result codes 0x01..=0x0F).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum Refusal {
+    /// The request could not be decoded.
+    Malformed = 0x01,
+    /// The request's version byte is not [`VERSION`].
+    UnsupportedVersion = 0x02,
+    /// The tag is not a console request.
+    UnknownRequest = 0x03,
+    /// Too many requests in progress; try again.
+    Busy = 0x04,
+    /// A motion command while the drive is disabled (send DREN first).
+    DriveDisabled = 0x05,
+    /// The LBC is not brought up yet.
+    NotReady = 0x06,
+    /// Only the authenticated ground station may do this.
+    NotAuthorized = 0x07,
+    /// An argument is out of range (e.g. a stream format with NOT-IN-USE bits).
+    BadArgument = 0x08,
+}
+
+impl Refusal {
+    fn from_u8(v: u8) -> Option<Self> {
+        Some(match v {
+            0x01 => Refusal::Malformed,
+            0x02 => Refusal::UnsupportedVersion,
+            0x03 => Refusal::UnknownRequest,
+            0x04 => Refusal::Busy,
+            0x05 => Refusal::DriveDisabled,
+            0x06 => Refusal::NotReady,
+            0x07 => Refusal::NotAuthorized,
+            0x08 => Refusal::BadArgument,
+            _ => return None,
+        })
+    }
+}
+
+/// What became of an LBC command.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LbcOutcome {
+    /// The LBC's positive answer (an echo or data), result code 0x00.
+    Answer(LbcReply),
+    /// The LBC answered with the command's specific error, result code 0x10.
+    Rejected(CommandKind),
+    /// The LBC answered UNKCMD, result code 0x11.
+    UnknownCommand,
+    /// No answer after all retries, result code 0x12.
+    TimedOut,
+    /// The LBC kept reporting checksum errors, result code 0x13.
+    ChecksumErrors,
+}
+
+/// Program and vehicle status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Status {
+    /// Bring-up state (see `Phase` codes in `docs/ubc-app.md`).
+    pub phase: u8,
+    /// [`flags`] bits.
+    pub flags: u8,
+    /// Car ID from READ_ID (0 until known).
+    pub car_id: u8,
+    /// Position, tracking units.
+    pub x: u16,
+    /// Position, tracking units.
+    pub y: u16,
+    /// Heading, mrad.
+    pub heading_mrad: u16,
+    /// Steering, signed mrad.
+    pub steering_mrad: i16,
+    /// Velocity, signed mm/s.
+    pub velocity_mm_s: i16,
+    /// Chip temperature, degrees Celsius (0xFF unknown).
+    pub temperature_c: u8,
+    /// Index of the point being driven to.
+    pub maneuver_index: u8,
+    /// Points in the maneuver (0: none).
+    pub maneuver_len: u8,
+    /// Milliseconds since the last STREAM frame (0xFFFF: none or longer).
+    pub stream_age_ms: u16,
+    /// Completed bring-ups.
+    pub bringups: u16,
+    /// LBC link failures (bring-up failures and lost streams).
+    pub lbc_failures: u16,
+    /// Seconds since the program started (wraps).
+    pub uptime_s: u16,
+}
+
+/// Bits of [`Status::flags`].
+pub mod flags {
+    /// The drive is enabled (DREN acknowledged, no reset seen since).
+    pub const DRIVE_ENABLED: u8 = 1 << 0;
+    /// STREAM frames are arriving.
+    pub const STREAMING: u8 = 1 << 1;
+    /// The ground station was heard within the user-link timeout.
+    pub const USER_LINK: u8 = 1 << 2;
+    /// Battery low.
+    pub const BATTERY_LOW: u8 = 1 << 3;
+    /// Chip over temperature.
+    pub const OVER_TEMPERATURE: u8 = 1 << 4;
+    /// A maneuver is running.
+    pub const MANEUVER: u8 = 1 << 5;
+    /// The LBC link failed recently (the red LED shows it).
+    pub const LBC_ERROR: u8 = 1 << 6;
+    /// The pose comes from a fresh STREAM frame.
+    pub const POSE_VALID: u8 = 1 << 7;
+}
+
+const STATUS_LEN: usize = 24;
+
+impl Status {
+    fn write(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let mut b = [0u8; STATUS_LEN];
+        b[0] = self.phase;
+        b[1] = self.flags;
+        b[2] = self.car_id;
+        b[3..5].copy_from_slice(&self.x.to_le_bytes());
+        b[5..7].copy_from_slice(&self.y.to_le_bytes());
+        b[7..9].copy_from_slice(&self.heading_mrad.to_le_bytes());
+        b[9..11].copy_from_slice(&self.steering_mrad.to_le_bytes());
+        b[11..13].copy_from_slice(&self.velocity_mm_s.to_le_bytes());
+        b[13] = self.temperature_c;
+        b[14] = self.maneuver_index;
+        b[15] = self.maneuver_len;
+        b[16..18].copy_from_slice(&self.stream_age_ms.to_le_bytes());
+        b[18..20].copy_from_slice(&self.bringups.to_le_bytes());
+        b[20..22].copy_from_slice(&self.lbc_failures.to_le_bytes());
+        b[22..24].copy_from_slice(&self.uptime_s.to_le_bytes());
+        put(out, 0, &b)?;
+        Ok(STATUS_LEN)
+    }
+
+    fn read(b: &[u8]) -> Self {
+        Status {
+            phase: b[0],
+            flags: b[1],
+            car_id: b[2],
+            x: u16_at(b, 3),
+            y: u16_at(b, 5),
+            heading_mrad: u16_at(b, 7),
+            steering_mrad: u16_at(b, 9) as i16,
+            velocity_mm_s: u16_at(b, 11) as i16,
+            temperature_c: b[13],
+            maneuver_index: b[14],
+            maneuver_len: b[15],
+            stream_age_ms: u16_at(b, 16),
+            bringups: u16_at(b, 18),
+            lbc_failures: u16_at(b, 20),
+            uptime_s: u16_at(b, 22),
+        }
+    }
+}
+
+/// Statistics pages: which counters each page carries, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum StatsPage {
+    /// LBC requests: sent, acked, errors, timeouts, retries, cser, unkcmd.
+    LbcRequests = 0,
+    /// LBC line: stream frames, unexpected, decode errors, garbage bytes, truncated,
+    /// missing checksum, checksum errors.
+    LbcLine = 1,
+    /// Radio: rx frames, rx checksum, rx cobs, rx malformed, auth bad mac, auth replay,
+    /// states sent.
+    Radio = 2,
+    /// Program: bring-ups, bring-up failures, streams lost, user links lost, stream decode
+    /// errors, console requests, console refusals.
+    Program = 3,
+}
+
+/// A console reply (car to ground station).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reply {
+    /// The program did not carry out the request.
+    Refused(Refusal),
+    /// Outcome of [`Request::Lbc`].
+    Lbc(LbcOutcome),
+    /// Answer to [`Request::Status`].
+    Status(Status),
+    /// The stream format now asked of the LBC (the requested variables plus the program's).
+    StreamFormat(u32),
+    /// The maneuver started with this many points.
+    ManeuverStarted(u8),
+    /// The maneuver was stopped.
+    ManeuverStopped,
+    /// One statistics page.
+    Stats {
+        page: u8,
+        values: Vec<u32, STATS_PER_PAGE>,
+    },
+}
+
+const OK: u8 = 0x00;
+const LBC_REJECTED: u8 = 0x10;
+const LBC_UNKNOWN: u8 = 0x11;
+const LBC_TIMEOUT: u8 = 0x12;
+const LBC_CSER: u8 = 0x13;
+
+impl Reply {
+    /// Writes the payload of the reply to a request with tag `tag`; returns its length.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        put(out, 0, &[VERSION])?;
+        let (code, body_len) = match self {
+            Reply::Refused(r) => (*r as u8, 0),
+            Reply::Lbc(LbcOutcome::Answer(reply)) => {
+                let dst = out
+                    .get_mut(2..)
+                    .ok_or(EncodeError::BufferTooSmall { needed: 3 })?;
+                (OK, reply.emit(dst).map_err(EncodeError::Lbc)?)
+            }
+            Reply::Lbc(LbcOutcome::Rejected(kind)) => {
+                put(out, 2, &[kind.error_header()])?;
+                (LBC_REJECTED, 1)
+            }
+            Reply::Lbc(LbcOutcome::UnknownCommand) => (LBC_UNKNOWN, 0),
+            Reply::Lbc(LbcOutcome::TimedOut) => (LBC_TIMEOUT, 0),
+            Reply::Lbc(LbcOutcome::ChecksumErrors) => (LBC_CSER, 0),
+            Reply::Status(s) => {
+                let dst = out
+                    .get_mut(2..)
+                    .ok_or(EncodeError::BufferTooSmall { needed: 3 })?;
+                (OK, s.write(dst)?)
+            }
+            Reply::StreamFormat(bits) => {
+                put(out, 2, &bits.to_le_bytes())?;
+                (OK, 4)
+            }
+            Reply::ManeuverStarted(n) => {
+                put(out, 2, &[*n])?;
+                (OK, 1)
+            }
+            Reply::ManeuverStopped => (OK, 0),
+            Reply::Stats { page, values } => {
+                put(out, 2, &[*page])?;
+                for (i, v) in values.iter().enumerate() {
+                    put(out, 3 + 4 * i, &v.to_le_bytes())?;
+                }
+                (OK, 1 + 4 * values.len())
+            }
+        };
+        put(out, 1, &[code])?;
+        let len = 2 + body_len;
+        if len > MAX_PAYLOAD {
+            return Err(EncodeError::Field);
+        }
+        Ok(len)
+    }
+
+    /// Reads the reply to a request with tag `tag`.
+    pub fn decode(tag: u8, payload: &[u8]) -> Result<Self, DecodeError> {
+        let b = body(payload)?;
+        let (&code, b) = b.split_first().ok_or(DecodeError::Length {
+            tag,
+            expected: 1,
+            got: 0,
+        })?;
+        if let Some(r) = Refusal::from_u8(code) {
+            // Any request, even one with an unknown tag, can be refused.
+            if !b.is_empty() {
+                return Err(DecodeError::Length {
+                    tag,
+                    expected: 0,
+                    got: b.len(),
+                });
+            }
+            return Ok(Reply::Refused(r));
+        }
+        let t = Tag::from_u8(tag).ok_or(DecodeError::UnknownTag { tag })?;
+        Ok(match (t, code) {
+            (Tag::Lbc, OK) => {
+                let (header, data) = lbc_frame(b)?;
+                match LbcMessage::decode(header, data).map_err(DecodeError::LbcMessage)? {
+                    LbcMessage::Reply(r) => Reply::Lbc(LbcOutcome::Answer(r)),
+                    _ => return Err(DecodeError::Field { tag, offset: 0 }),
+                }
+            }
+            (Tag::Lbc, LBC_REJECTED) => {
+                expect_len(t, b, 1)?;
+                match LbcMessage::decode(b[0], &[]).map_err(DecodeError::LbcMessage)? {
+                    LbcMessage::Error(kind) => Reply::Lbc(LbcOutcome::Rejected(kind)),
+                    _ => return Err(DecodeError::Field { tag, offset: 0 }),
+                }
+            }
+            (Tag::Lbc, LBC_UNKNOWN | LBC_TIMEOUT | LBC_CSER) => {
+                expect_len(t, b, 0)?;
+                Reply::Lbc(match code {
+                    LBC_UNKNOWN => LbcOutcome::UnknownCommand,
+                    LBC_TIMEOUT => LbcOutcome::TimedOut,
+                    _ => LbcOutcome::ChecksumErrors,
+                })
+            }
+            (Tag::Status, OK) => {
+                expect_len(t, b, STATUS_LEN)?;
+                Reply::Status(Status::read(b))
+            }
+            (Tag::StreamFormat, OK) => {
+                expect_len(t, b, 4)?;
+                Reply::StreamFormat(u32_at(b, 0))
+            }
+            (Tag::ManeuverStart, OK) => {
+                expect_len(t, b, 1)?;
+                Reply::ManeuverStarted(b[0])
+            }
+            (Tag::ManeuverStop, OK) => {
+                expect_len(t, b, 0)?;
+                Reply::ManeuverStopped
+            }
+            (Tag::Stats, OK) => {
+                let (&page, rest) = b.split_first().ok_or(DecodeError::Length {
+                    tag,
+                    expected: 1,
+                    got: 0,
+                })?;
+                if rest.len() % 4 != 0 || rest.len() > 4 * STATS_PER_PAGE {
+                    return Err(DecodeError::Length {
+                        tag,
+                        expected: 4 * STATS_PER_PAGE,
+                        got: rest.len(),
+                    });
+                }
+                let mut values = Vec::new();
+                for c in rest.chunks_exact(4) {
+                    // Cannot fail: at most STATS_PER_PAGE chunks.
+                    let _ = values.push(u32_at(c, 0));
+                }
+                Reply::Stats { page, values }
+            }
+            (Tag::Notice, _) => return Err(DecodeError::UnknownTag { tag }),
+            (_, code) => return Err(DecodeError::UnknownResult { code }),
+        })
+    }
+}
+
+/// Something the car tells the ground station unasked (radio-mac request, tag [`Tag::Notice`]);
+/// the ground station answers with an empty reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Notice {
+    /// The LBC stopped answering (bring-up failed or its stream stopped); the car is stopped.
+    LbcLost,
+    /// The LBC is brought up again after a failure.
+    LbcRecovered,
+    /// Battery or temperature warnings changed: bit 0 over temperature, bit 1 battery low.
+    Warnings(u8),
+    /// The ground station was not heard for the user-link timeout; the car was stopped.
+    UserLinkLost,
+    /// The go-to maneuver reached its last point.
+    ManeuverDone,
+    /// The go-to maneuver was aborted (LBC refused a target or the link failed).
+    ManeuverAborted,
+}
+
+impl Notice {
+    /// Writes the payload `[VERSION, code, arg]`; returns its length (3).
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let (code, arg) = match *self {
+            Notice::LbcLost => (1, 0),
+            Notice::LbcRecovered => (2, 0),
+            Notice::Warnings(w) => (3, w),
+            Notice::UserLinkLost => (4, 0),
+            Notice::ManeuverDone => (5, 0),
+            Notice::ManeuverAborted => (6, 0),
+        };
+        put(out, 0, &[VERSION, code, arg])?;
+        Ok(3)
+    }
+
+    /// Reads a notice payload.
+    pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
+        let tag = Tag::Notice as u8;
+        let b = body(payload)?;
+        expect_len(Tag::Notice, b, 2)?;
+        let notice = match (b[0], b[1]) {
+            (1, _) => Notice::LbcLost,
+            (2, _) => Notice::LbcRecovered,
+            (3, w) if w <= 3 => Notice::Warnings(w),
+            (3, _) => return Err(DecodeError::Field { tag, offset: 2 }),
+            (4, _) => Notice::UserLinkLost,
+            (5, _) => Notice::ManeuverDone,
+            (6, _) => Notice::ManeuverAborted,
+            (code, _) => return Err(DecodeError::UnknownResult { code }),
+        };
+        Ok(notice)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lbc_link::{Position, VehicleId};
+    use proptest::prelude::*;
+
+    fn req_bytes(r: &Request) -> ([u8; MAX_PAYLOAD], usize) {
+        let mut b = [0u8; MAX_PAYLOAD];
+        let n = r.encode(&mut b).unwrap();
+        (b, n)
+    }
+
+    #[test]
+    fn lbc_request_carries_the_lbc_message_verbatim() {
+        let r = Request::Lbc(Command::MoveXy(Position::new(320, 480).unwrap()));
+        let (b, n) = req_bytes(&r);
+        assert_eq!(&b[..n], &[1, 0xC1, 0x02, 0x40, 0x03, 0x60, 0x60, 0xFF]);
+        assert_eq!(Request::decode(0x01, &b[..n]).unwrap(), r);
+    }
+
+    #[test]
+    fn maneuver_request_layout() {
+        let mut pts = Points::new();
+        pts.push(Point { x: 320, y: 480 }).unwrap();
+        pts.push(Point { x: 0x102, y: 3 }).unwrap();
+        let r = Request::ManeuverStart(pts);
+        let (b, n) = req_bytes(&r);
+        assert_eq!(
+            &b[..n],
+            &[1, 2, 0x40, 0x01, 0xE0, 0x01, 0x02, 0x01, 0x03, 0x00]
+        );
+        assert_eq!(Request::decode(0x04, &b[..n]).unwrap(), r);
+    }
+
+    #[test]
+    fn bad_requests_are_typed_errors() {
+        assert_eq!(Request::decode(0x02, &[]), Err(DecodeError::Empty));
+        assert_eq!(
+            Request::decode(0x02, &[9]),
+            Err(DecodeError::UnsupportedVersion { got: 9 })
+        );
+        assert_eq!(
+            Request::decode(0x7E, &[1]),
+            Err(DecodeError::UnknownTag { tag: 0x7E })
+        );
+        assert_eq!(
+            Request::decode(0x02, &[1, 0]),
+            Err(DecodeError::Length {
+                tag: 2,
+                expected: 0,
+                got: 1
+            })
+        );
+        // Bad checksum inside the carried LBC message.
+        assert!(matches!(
+            Request::decode(0x01, &[1, 0xC1, 0x02, 0x40, 0x03, 0x60, 0x61, 0xFF]),
+            Err(DecodeError::LbcFrame(FrameError::ChecksumMismatch { .. }))
+        ));
+        // X beyond 640.
+        assert_eq!(
+            Request::decode(0x04, &[1, 1, 0x81, 0x02, 0, 0]),
+            Err(DecodeError::Field { tag: 4, offset: 1 })
+        );
+    }
+
+    #[test]
+    fn lbc_reply_vectors() {
+        let mut b = [0u8; MAX_PAYLOAD];
+        let r = Reply::Lbc(LbcOutcome::Answer(LbcReply::ReadId(
+            VehicleId::new(7).unwrap(),
+        )));
+        let n = r.encode(&mut b).unwrap();
+        assert_eq!(&b[..n], &[1, 0, 0xE8, 0x07, 0x6F, 0xFF]);
+        assert_eq!(Reply::decode(0x01, &b[..n]).unwrap(), r);
+
+        let r = Reply::Lbc(LbcOutcome::Rejected(CommandKind::MoveXy));
+        let n = r.encode(&mut b).unwrap();
+        assert_eq!(&b[..n], &[1, 0x10, 0x81]);
+        assert_eq!(Reply::decode(0x01, &b[..n]).unwrap(), r);
+
+        let r = Reply::Refused(Refusal::DriveDisabled);
+        let n = r.encode(&mut b).unwrap();
+        assert_eq!(&b[..n], &[1, 0x05]);
+        assert_eq!(Reply::decode(0x01, &b[..n]).unwrap(), r);
+    }
+
+    fn arb_status() -> impl Strategy<Value = Status> {
+        (
+            any::<[u8; 3]>(),
+            any::<[u16; 3]>(),
+            any::<[i16; 2]>(),
+            any::<[u8; 3]>(),
+            any::<[u16; 4]>(),
+        )
+            .prop_map(|(a, b, c, d, e)| Status {
+                phase: a[0],
+                flags: a[1],
+                car_id: a[2],
+                x: b[0],
+                y: b[1],
+                heading_mrad: b[2],
+                steering_mrad: c[0],
+                velocity_mm_s: c[1],
+                temperature_c: d[0],
+                maneuver_index: d[1],
+                maneuver_len: d[2],
+                stream_age_ms: e[0],
+                bringups: e[1],
+                lbc_failures: e[2],
+                uptime_s: e[3],
+            })
+    }
+
+    proptest! {
+        #[test]
+        fn status_round_trips(s in arb_status()) {
+            let mut b = [0u8; MAX_PAYLOAD];
+            let n = Reply::Status(s).encode(&mut b).unwrap();
+            prop_assert_eq!(Reply::decode(0x02, &b[..n]).unwrap(), Reply::Status(s));
+        }
+
+        #[test]
+        fn stats_round_trip(page in 0u8..4, vals in proptest::collection::vec(any::<u32>(), 0..=7)) {
+            let values: Vec<u32, STATS_PER_PAGE> = vals.iter().copied().collect();
+            let r = Reply::Stats { page, values };
+            let mut b = [0u8; MAX_PAYLOAD];
+            let n = r.encode(&mut b).unwrap();
+            prop_assert_eq!(Reply::decode(0x06, &b[..n]).unwrap(), r);
+        }
+
+        #[test]
+        fn maneuver_round_trips(pts in proptest::collection::vec((0u16..=640, 0u16..=960), 1..=7)) {
+            let points: Points = pts.iter().map(|&(x, y)| Point { x, y }).collect();
+            let r = Request::ManeuverStart(points);
+            let (b, n) = req_bytes(&r);
+            prop_assert_eq!(Request::decode(0x04, &b[..n]).unwrap(), r);
+        }
+
+        #[test]
+        fn stream_format_round_trips(bits in any::<u32>()) {
+            let r = Request::StreamFormat(bits);
+            let (b, n) = req_bytes(&r);
+            prop_assert_eq!(Request::decode(0x03, &b[..n]).unwrap(), r);
+            let mut o = [0u8; MAX_PAYLOAD];
+            let n = Reply::StreamFormat(bits).encode(&mut o).unwrap();
+            prop_assert_eq!(Reply::decode(0x03, &o[..n]).unwrap(), Reply::StreamFormat(bits));
+        }
+
+        #[test]
+        fn lbc_requests_round_trip(x in 0u16..=640, y in 0u16..=960, p in 1u8..=12, v in -100i16..=100, led in 0u8..0x80) {
+            let pv = lbc_link::ParamValue::new(lbc_link::Param::from_number(p).unwrap(), v);
+            let led = lbc_link::LedPattern::from_bits(led).unwrap();
+            let mut cmds = vec![
+                Command::MoveXy(Position::new(x, y).unwrap()),
+                Command::WritLed { green: led, red: led },
+                Command::ReadPar(lbc_link::Param::from_number(p).unwrap()),
+            ];
+            if let Ok(pv) = pv {
+                cmds.push(Command::UpdPar(pv));
+            }
+            for c in cmds {
+                let r = Request::Lbc(c);
+                let (b, n) = req_bytes(&r);
+                prop_assert_eq!(Request::decode(0x01, &b[..n]).unwrap(), r);
+                if matches!(c, Command::ReadPar(_)) {
+                    continue; // answered with data, not an echo
+                }
+                let answer = Reply::Lbc(LbcOutcome::Answer(LbcReply::Echo(c)));
+                let mut o = [0u8; MAX_PAYLOAD];
+                let n = answer.encode(&mut o).unwrap();
+                prop_assert_eq!(Reply::decode(0x01, &o[..n]).unwrap(), answer);
+            }
+        }
+
+        #[test]
+        fn decoders_never_panic(tag in any::<u8>(), bytes in proptest::collection::vec(any::<u8>(), 0..40)) {
+            let _ = Request::decode(tag, &bytes);
+            let _ = Reply::decode(tag, &bytes);
+            let _ = Notice::decode(&bytes);
+        }
+
+        #[test]
+        fn notices_round_trip(code in 0u8..6, w in 0u8..4) {
+            let n = [Notice::LbcLost, Notice::LbcRecovered, Notice::Warnings(w),
+                     Notice::UserLinkLost, Notice::ManeuverDone, Notice::ManeuverAborted][usize::from(code)];
+            let mut b = [0u8; 4];
+            let len = n.encode(&mut b).unwrap();
+            prop_assert_eq!(Notice::decode(&b[..len]).unwrap(), n);
+        }
+    }
+}

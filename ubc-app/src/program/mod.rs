@@ -1,0 +1,47 @@
+//! The UBC demo program (seed chapter 4): it brings the LBC up, keeps the vehicle state from
+//! the 30 Hz stream, serves the user's console over the radio, runs a go-to-points maneuver
+//! and stops the car when a link is lost.
+//!
+//! Everything here is board-independent and sans-IO: the board layer hands [`Program::poll`]
+//! a [`Clock`], the two UARTs as [`BytePort`]s and a [`LogSink`], and sleeps until
+//! [`Program::poll_at`]. Host tests drive the same code with fakes and the emulated LBC.
+
+mod config;
+pub mod console;
+mod leds;
+mod machine;
+mod maneuver;
+
+pub use config::{Config, DEFAULT_KEY};
+pub use leds::LedState;
+pub use machine::{Counters, LogEvent, Phase, Program, REQUIRED_STREAM};
+pub use maneuver::{Maneuver, ManeuverState};
+
+/// A monotonic microsecond clock.
+pub trait Clock {
+    /// Microseconds since any fixed origin.
+    fn now_us(&self) -> u64;
+}
+
+/// A non-blocking UART: `read` returns what has arrived (0 if nothing), `write` takes what fits
+/// in the transmit buffer (possibly 0) and never waits.
+pub trait BytePort {
+    /// Moves received bytes into `buf`; returns how many.
+    fn read(&mut self, buf: &mut [u8]) -> usize;
+    /// Queues bytes for transmission; returns how many were taken.
+    fn write(&mut self, bytes: &[u8]) -> usize;
+}
+
+/// Where the program reports what it does (defmt on the board, a vector in tests).
+pub trait LogSink {
+    /// One event at `now_us`.
+    fn log(&mut self, now_us: u64, event: LogEvent);
+}
+
+/// A sink that drops everything.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct NoLog;
+
+impl LogSink for NoLog {
+    fn log(&mut self, _now_us: u64, _event: LogEvent) {}
+}

@@ -1,0 +1,637 @@
+//! The program against the emulated LBC (lockstep, simulated time) and a radio-mac ground
+//! station on a direct radio pipe: bring-up, the console, MOVE_XY, recovery, corrupt bytes
+//! and the user-link watchdog.
+
+use std::cell::Cell;
+use std::collections::VecDeque;
+
+use lbc_emu::{Lbc, LbcConfig};
+use lbc_link::{
+    Command, CommandKind, Duty, EepromAddress, GpioPattern, GpioRate, LedPattern, LedRate, Param,
+    ParamValue, Position, Reply as LbcReply, SteerVelocity, SteeringAngle, UserRegister, Velocity,
+};
+use radio_mac::{Address, CarId, Event, GroundConfig, GroundStation, Key, RequestHandle};
+use ubc_app::program::console::{LbcOutcome, Notice, Point, Points, Refusal, Reply, Request, Tag};
+use ubc_app::program::{BytePort, Clock, Config, LogEvent, LogSink, Phase, Program, DEFAULT_KEY};
+
+const CAR: u8 = 7;
+
+struct SimClock(Cell<u64>);
+
+impl Clock for SimClock {
+    fn now_us(&self) -> u64 {
+        self.0.get()
+    }
+}
+
+#[derive(Default)]
+struct Pipe {
+    rx: VecDeque<u8>,
+    tx: Vec<u8>,
+}
+
+impl BytePort for Pipe {
+    fn read(&mut self, buf: &mut [u8]) -> usize {
+        let n = buf.len().min(self.rx.len());
+        for b in buf.iter_mut().take(n) {
+            *b = self.rx.pop_front().unwrap_or(0);
+        }
+        n
+    }
+
+    fn write(&mut self, bytes: &[u8]) -> usize {
+        self.tx.extend_from_slice(bytes);
+        bytes.len()
+    }
+}
+
+#[derive(Default)]
+struct Log(Vec<(u64, LogEvent)>);
+
+impl LogSink for Log {
+    fn log(&mut self, now_us: u64, event: LogEvent) {
+        self.0.push((now_us, event));
+    }
+}
+
+struct Sim {
+    now: u64,
+    prog: Program,
+    lbc: Lbc,
+    ground: GroundStation,
+    lbc_port: Pipe,
+    radio_port: Pipe,
+    log: Log,
+    lbc_connected: bool,
+    ground_on: bool,
+    notices: Vec<Notice>,
+    replies: Vec<(RequestHandle, u8, Vec<u8>)>,
+    failed: Vec<RequestHandle>,
+    /// One byte in `n` on every link direction is corrupted (0: none).
+    noise_every: u32,
+    seed: u32,
+}
+
+impl Sim {
+    fn new() -> Self {
+        Self::with(Config::default())
+    }
+
+    fn with(cfg: Config) -> Self {
+        Self::with_lbc(
+            cfg,
+            Lbc::with_memory_eeprom(LbcConfig::default(), CAR),
+            DEFAULT_KEY,
+        )
+    }
+
+    fn with_lbc(cfg: Config, lbc: Lbc, ground_key: [u8; 16]) -> Self {
+        Sim {
+            now: 0,
+            prog: Program::new(cfg),
+            lbc,
+            ground: GroundStation::new(GroundConfig::new(Key::new(ground_key), 1)),
+            lbc_port: Pipe::default(),
+            radio_port: Pipe::default(),
+            log: Log::default(),
+            lbc_connected: true,
+            ground_on: true,
+            notices: Vec::new(),
+            replies: Vec::new(),
+            failed: Vec::new(),
+            noise_every: 0,
+            seed: 0x1234_5678,
+        }
+    }
+
+    fn corrupt(&mut self, bytes: &mut [u8]) {
+        if self.noise_every == 0 {
+            return;
+        }
+        for b in bytes {
+            if u32::from(self.rand()) * 256 + u32::from(self.rand()) < 65_536 / self.noise_every {
+                *b ^= self.rand() | 1;
+            }
+        }
+    }
+
+    fn rand(&mut self) -> u8 {
+        self.seed ^= self.seed << 13;
+        self.seed ^= self.seed >> 17;
+        self.seed ^= self.seed << 5;
+        (self.seed >> 8) as u8
+    }
+
+    /// One simulated millisecond.
+    fn step(&mut self) {
+        self.now += 1_000;
+        let now = self.now;
+        let mut to_lbc: Vec<u8> = self.lbc_port.tx.drain(..).collect();
+        self.corrupt(&mut to_lbc);
+        if self.lbc_connected {
+            self.lbc.push_rx(now, &to_lbc);
+        }
+        self.lbc.step_until(now);
+        let mut from_lbc = Vec::new();
+        self.lbc.drain_tx(now, &mut from_lbc);
+        self.corrupt(&mut from_lbc);
+        if self.lbc_connected {
+            self.lbc_port.rx.extend(from_lbc);
+        }
+        let mut to_ground: Vec<u8> = self.radio_port.tx.drain(..).collect();
+        self.corrupt(&mut to_ground);
+        if self.ground_on {
+            self.ground.push_rx(now, &to_ground);
+            self.ground.poll(now);
+            while let Some(ev) = self.ground.next_event() {
+                match ev {
+                    Event::Request(inc) if inc.tag == Tag::Notice as u8 => {
+                        if let Ok(n) = Notice::decode(&inc.payload) {
+                            self.notices.push(n);
+                        }
+                        let _ = self.ground.reply(inc.id, inc.tag, &[]);
+                    }
+                    Event::Reply {
+                        handle,
+                        tag,
+                        payload,
+                        ..
+                    } => self.replies.push((handle, tag, payload.to_vec())),
+                    Event::Failed { handle, .. } => self.failed.push(handle),
+                    _ => {}
+                }
+            }
+            let mut buf = [0u8; 256];
+            loop {
+                let n = self.ground.transmit(&mut buf);
+                if n == 0 {
+                    break;
+                }
+                let mut bytes = buf[..n].to_vec();
+                self.corrupt(&mut bytes);
+                self.radio_port.rx.extend(bytes);
+            }
+        }
+        let clock = SimClock(Cell::new(now));
+        self.prog.poll(
+            &clock,
+            &mut self.lbc_port,
+            &mut self.radio_port,
+            &mut self.log,
+        );
+    }
+
+    fn run_ms(&mut self, ms: u64) {
+        for _ in 0..ms {
+            self.step();
+        }
+    }
+
+    fn run_until(&mut self, max_ms: u64, done: impl Fn(&Sim) -> bool) -> bool {
+        for _ in 0..max_ms {
+            if done(self) {
+                return true;
+            }
+            self.step();
+        }
+        done(self)
+    }
+
+    fn bring_up(&mut self) {
+        assert!(
+            self.run_until(2_000, |s| s.prog.phase() == Phase::Running),
+            "no bring-up: {:?}",
+            self.log.0
+        );
+    }
+
+    /// Sends a console request from the ground station and waits for the car's reply.
+    fn request(&mut self, req: &Request) -> Reply {
+        let mut buf = [0u8; 32];
+        let n = req.encode(&mut buf).expect("encode");
+        let tag = req.tag() as u8;
+        self.request_raw(tag, &buf[..n])
+    }
+
+    fn request_raw(&mut self, tag: u8, payload: &[u8]) -> Reply {
+        let dst = Address::Car(CarId::new(CAR).unwrap());
+        let h = self
+            .ground
+            .command(self.now, dst, tag, payload)
+            .expect("ground command");
+        let ok = self.run_until(5_000, |s| {
+            s.replies.iter().any(|r| r.0 == h) || s.failed.contains(&h)
+        });
+        assert!(ok, "no answer to tag {tag:#x}");
+        assert!(
+            !self.failed.contains(&h),
+            "request {tag:#x} failed on the radio: car {:?}, ground {:?}, log {:?}",
+            self.prog.radio_stats(),
+            self.ground.stats(),
+            &self.log.0[self.log.0.len().saturating_sub(10)..]
+        );
+        let (_, rtag, payload) = self.replies.iter().find(|r| r.0 == h).unwrap().clone();
+        assert_eq!(rtag, tag);
+        Reply::decode(rtag, &payload).expect("reply decodes")
+    }
+
+    fn lbc(&mut self, cmd: Command) -> LbcOutcome {
+        match self.request(&Request::Lbc(cmd)) {
+            Reply::Lbc(o) => o,
+            other => panic!("{cmd:?}: {other:?}"),
+        }
+    }
+
+    fn status(&mut self) -> ubc_app::program::console::Status {
+        match self.request(&Request::Status) {
+            Reply::Status(s) => s,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn logged(&self, f: impl Fn(&LogEvent) -> bool) -> usize {
+        self.log.0.iter().filter(|(_, e)| f(e)).count()
+    }
+}
+
+#[test]
+fn bring_up_completes_and_state_is_broadcast() {
+    let mut s = Sim::new();
+    s.bring_up();
+    s.run_ms(300);
+    assert!(s.lbc.drive_enabled());
+    assert!(s.lbc.streaming());
+    assert_eq!(s.lbc.stream_format(), s.prog.stream_format());
+    assert!(s.prog.lbc_stats().stream_frames >= 5);
+    // The start pose (750 mm, 1000 mm) in tracking units, via the 30 Hz stream.
+    let st = s.status();
+    assert_eq!(st.car_id, CAR);
+    assert_eq!((st.x, st.y), (300, 400));
+    assert_eq!(st.phase, Phase::Running as u8);
+    // The ground station hears the car's state broadcast.
+    let car = s.ground.cars().next().expect("car heard");
+    assert_eq!(car.addr, Address::Car(CarId::new(CAR).unwrap()));
+    // Running and heard: green on, red off.
+    let (leds, _) = s.lbc.leds();
+    assert_eq!(leds[0].duty(), Duty::ON);
+    assert_eq!(leds[1].duty(), Duty::OFF);
+}
+
+#[test]
+fn every_lbc_command_reaches_the_lbc_and_its_answer_returns() {
+    let mut s = Sim::new();
+    s.bring_up();
+    let green = LedPattern::new(LedRate::Blink5Hz, Duty::new(3).unwrap());
+    let red = LedPattern::new(LedRate::Dim50Hz, Duty::ON);
+    let gpo = GpioPattern::new(GpioRate::Hz10, Duty::new(5).unwrap());
+    let reg = UserRegister::new(0x21).unwrap();
+    let gain = ParamValue::new(Param::MotorPGain, 17).unwrap();
+    let sv = SteerVelocity {
+        steering: SteeringAngle::new(0).unwrap(),
+        velocity: Velocity::new(0).unwrap(),
+    };
+    let cmds = [
+        Command::ReadId,
+        Command::ReadXy,
+        Command::ReadSv,
+        Command::ReadAy,
+        Command::ReadPry,
+        Command::ReadBt,
+        Command::ReadRs,
+        Command::ReadHd,
+        Command::ReadSf,
+        Command::ReadPar(Param::MotorPGain),
+        Command::UpdPar(gain),
+        Command::WritLed { green, red },
+        Command::WritGpo {
+            gpio0: gpo,
+            gpio1: gpo,
+        },
+        Command::WritEp {
+            address: reg,
+            value: 1234,
+        },
+        Command::ReadEp(EepromAddress::new(0x21).unwrap()),
+        Command::CalbGs,
+        Command::CalbSt,
+        Command::CalbDm,
+        Command::Cmep,
+        Command::Rsep,
+        Command::MoveSv(sv),
+        Command::MoveXy(Position::new(300, 400).unwrap()),
+        Command::Stop,
+        Command::UpdSf(s.prog.stream_format()),
+        Command::Stds,
+        Command::Sten,
+        Command::Drds,
+        Command::Dren,
+        Command::Init,
+    ];
+    let mut kinds = std::collections::HashSet::new();
+    for cmd in cmds {
+        let o = s.lbc(cmd);
+        match &o {
+            LbcOutcome::Answer(r) => assert_eq!(r.kind(), cmd.kind(), "{cmd:?}"),
+            LbcOutcome::Rejected(k) => assert_eq!(*k, cmd.kind(), "{cmd:?}"),
+            other => panic!("{cmd:?}: {other:?}"),
+        }
+        kinds.insert(cmd.kind());
+        match cmd {
+            Command::ReadId => {
+                assert!(matches!(o, LbcOutcome::Answer(LbcReply::ReadId(id)) if id.get() == CAR))
+            }
+            Command::ReadXy => assert!(matches!(
+                o,
+                LbcOutcome::Answer(LbcReply::ReadXy(p)) if (p.x.get(), p.y.get()) == (300, 400)
+            )),
+            Command::UpdPar(_) => assert_eq!(s.lbc.param(Param::MotorPGain), 17),
+            Command::ReadEp(_) => assert!(matches!(
+                o,
+                LbcOutcome::Answer(LbcReply::ReadEpData { value: 1234, .. })
+            )),
+            Command::WritLed { .. } => assert_eq!(s.lbc.leds().0, [green, red]),
+            Command::WritGpo { .. } => assert_eq!(s.lbc.gpio().0, [gpo, gpo]),
+            Command::Drds => assert!(!s.lbc.drive_enabled()),
+            Command::Dren => assert!(s.lbc.drive_enabled()),
+            Command::Stds => assert!(!s.lbc.streaming()),
+            Command::Sten => assert!(s.lbc.streaming()),
+            Command::Init => assert!(!s.lbc.drive_enabled() && !s.prog.drive_enabled()),
+            _ => {}
+        }
+    }
+    // All 29 commands of Table 3-2.
+    assert_eq!(kinds.len(), 29);
+    // After the user's INIT the drive is off: the program refuses motion itself.
+    let target = Command::MoveXy(Position::new(320, 480).unwrap());
+    let before = s.prog.lbc_stats().sent;
+    assert_eq!(
+        s.request(&Request::Lbc(target)),
+        Reply::Refused(Refusal::DriveDisabled)
+    );
+    assert_eq!(s.prog.lbc_stats().sent, before);
+}
+
+#[test]
+fn move_xy_brings_the_car_to_the_target() {
+    let mut s = Sim::new();
+    s.bring_up();
+    let o = s.lbc(Command::MoveXy(Position::new(320, 480).unwrap()));
+    assert!(matches!(
+        o,
+        LbcOutcome::Answer(LbcReply::Echo(Command::MoveXy(_)))
+    ));
+    let near = |s: &Sim| {
+        let st = s.prog.status(s.now);
+        (i32::from(st.x) - 320).abs() <= 10 && (i32::from(st.y) - 480).abs() <= 10
+    };
+    assert!(
+        s.run_until(20_000, near),
+        "status: {:?}",
+        s.prog.status(s.now)
+    );
+    let st = s.status();
+    assert!((i32::from(st.x) - 320).abs() <= 10, "{st:?}");
+    assert!((i32::from(st.y) - 480).abs() <= 10, "{st:?}");
+}
+
+#[test]
+fn go_to_points_maneuver_runs_and_reports_done() {
+    let mut s = Sim::new();
+    s.bring_up();
+    let mut pts = Points::new();
+    pts.push(Point { x: 300, y: 470 }).unwrap();
+    pts.push(Point { x: 340, y: 520 }).unwrap();
+    assert_eq!(
+        s.request(&Request::ManeuverStart(pts)),
+        Reply::ManeuverStarted(2)
+    );
+    assert!(s.prog.maneuver().active());
+    assert!(
+        s.run_until(30_000, |s| s.notices.contains(&Notice::ManeuverDone)),
+        "status {:?}",
+        s.prog.status(s.now)
+    );
+    let st = s.prog.status(s.now);
+    assert!((i32::from(st.x) - 340).abs() <= 14 && (i32::from(st.y) - 520).abs() <= 14);
+    // Stopping an idle maneuver is harmless.
+    assert_eq!(s.request(&Request::ManeuverStop), Reply::ManeuverStopped);
+}
+
+#[test]
+fn lbc_reset_mid_run_is_recovered() {
+    let mut s = Sim::new();
+    s.bring_up();
+    s.run_ms(200);
+    s.lbc.reset();
+    assert!(!s.lbc.streaming());
+    assert!(s.run_until(2_000, |s| s.prog.counters().bringups >= 2));
+    s.run_ms(300);
+    assert_eq!(s.prog.phase(), Phase::Running);
+    assert!(s.lbc.drive_enabled() && s.lbc.streaming());
+    assert_eq!(s.prog.counters().streams_lost, 1);
+    assert_eq!(s.logged(|e| *e == LogEvent::LbcLost), 1);
+    assert!(s.notices.contains(&Notice::LbcLost));
+    assert!(s.notices.contains(&Notice::LbcRecovered));
+    // The red LED shows the past failure for a while.
+    assert_eq!(s.lbc.leds().0[1].rate(), LedRate::Blink2Hz);
+    // And the car still drives.
+    let o = s.lbc(Command::MoveXy(Position::new(310, 450).unwrap()));
+    assert!(matches!(o, LbcOutcome::Answer(_)));
+}
+
+#[test]
+fn silent_lbc_is_retried_with_backoff_until_it_answers() {
+    let mut s = Sim::new();
+    s.lbc_connected = false;
+    s.run_ms(4_000);
+    assert_ne!(s.prog.phase(), Phase::Running);
+    let failures = s.prog.counters().bringup_failures;
+    // Back-off: far fewer attempts than 4 s / one INIT timeout.
+    assert!((3..=10).contains(&failures), "{failures}");
+    // The radio started with the fallback ID meanwhile; connect the LBC.
+    s.lbc_connected = true;
+    assert!(s.run_until(3_000, |s| s.prog.phase() == Phase::Running));
+    s.run_ms(100);
+    assert_eq!(s.lbc.leds().0[1].rate(), LedRate::Blink2Hz);
+    assert!(s.lbc.drive_enabled());
+}
+
+#[test]
+fn corrupt_bytes_on_both_links_are_counted_and_survived() {
+    let mut s = Sim::new();
+    s.bring_up();
+    s.noise_every = 300;
+    s.run_ms(3_000);
+    // Garbage between messages on the LBC line as well.
+    s.lbc_port
+        .rx
+        .extend([0x00, 0x13, 0x7F, 0xFF, 0xFF, 0x80, 0x45]);
+    // And a broken radio frame (bad COBS/CRC) closed by a delimiter.
+    s.radio_port
+        .rx
+        .extend([0x05, 0x11, 0x22, 0x33, 0x44, 0x55, 0x00]);
+    // Console requests still get through (the ground station retries what noise destroys).
+    let o = s.lbc(Command::ReadId);
+    assert!(matches!(o, LbcOutcome::Answer(LbcReply::ReadId(_))));
+    s.noise_every = 0;
+    s.run_ms(500);
+    assert_eq!(s.prog.phase(), Phase::Running);
+    let l = s.prog.lbc_stats();
+    let noise = l.deframer.garbage_bytes
+        + l.deframer.checksum_errors
+        + l.deframer.truncated
+        + l.deframer.stray_terminators
+        + l.decode_errors
+        + l.unexpected;
+    assert!(noise > 0, "{l:?}");
+    let lost = |r: &radio_mac::Stats| {
+        r.rx_cobs + r.rx_checksum + r.rx_too_short + r.rx_malformed + r.rx_version + r.rx_oversize
+    };
+    let car = s.prog.radio_stats().unwrap();
+    let ground = *s.ground.stats();
+    assert!(lost(&ground) > 0, "{ground:?}");
+    assert!(lost(&car) > 0, "{car:?}");
+    // Counters reach the ground too.
+    match s.request(&Request::Stats(1)) {
+        Reply::Stats { page: 1, values } => assert!(values.iter().skip(1).any(|v| *v > 0)),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn loss_of_the_user_link_stops_the_car() {
+    let mut s = Sim::new();
+    s.bring_up();
+    let sv = SteerVelocity {
+        steering: SteeringAngle::new(100).unwrap(),
+        velocity: Velocity::new(300).unwrap(),
+    };
+    assert!(matches!(s.lbc(Command::MoveSv(sv)), LbcOutcome::Answer(_)));
+    s.run_ms(500);
+    assert!(s.lbc.velocity_estimate_mm_s() > 150.0);
+    // The ground station goes silent.
+    s.ground_on = false;
+    s.run_ms(2_500);
+    assert!(s.lbc.velocity_estimate_mm_s() > 150.0, "stopped too early");
+    s.run_ms(1_500);
+    assert_eq!(s.logged(|e| *e == LogEvent::UserLinkLost), 1);
+    assert_eq!(s.lbc.targets().0, 0.0);
+    s.run_ms(1_000);
+    assert!(s.lbc.velocity_estimate_mm_s().abs() < 20.0);
+    // Red LED: user link lost.
+    assert_eq!(s.lbc.leds().0[1].rate(), LedRate::Blink1Hz);
+    // The ground station returns.
+    s.ground_on = true;
+    let st = s.status();
+    assert_ne!(st.flags & ubc_app::program::console::flags::USER_LINK, 0);
+    assert_eq!(s.logged(|e| *e == LogEvent::UserLinkRestored), 1);
+}
+
+#[test]
+fn malformed_and_unauthorised_requests_are_refused() {
+    let mut s = Sim::new();
+    s.bring_up();
+    assert_eq!(
+        s.request_raw(Tag::Status as u8, &[9]),
+        Reply::Refused(Refusal::UnsupportedVersion)
+    );
+    assert_eq!(
+        s.request_raw(0x33, &[1]),
+        Reply::Refused(Refusal::UnknownRequest)
+    );
+    // A MOVE_XY with a bad checksum inside.
+    assert_eq!(
+        s.request_raw(
+            Tag::Lbc as u8,
+            &[1, 0xC1, 0x02, 0x40, 0x03, 0x60, 0x61, 0xFF]
+        ),
+        Reply::Refused(Refusal::Malformed)
+    );
+    assert_eq!(
+        s.request(&Request::StreamFormat(1 << 5)),
+        Reply::Refused(Refusal::BadArgument)
+    );
+    assert_eq!(
+        s.request(&Request::Stats(9)),
+        Reply::Refused(Refusal::BadArgument)
+    );
+    // A ground station with the wrong key is not heard at all.
+    let mut bad = GroundStation::new(GroundConfig::new(Key::new([0x55; 16]), 1));
+    let mut buf = [0u8; 32];
+    let n = Request::Lbc(Command::Drds).encode(&mut buf).unwrap();
+    bad.command(s.now, Address::Car(CarId::new(CAR).unwrap()), 1, &buf[..n])
+        .unwrap();
+    let mut out = [0u8; 128];
+    let n = bad.transmit(&mut out);
+    s.radio_port.rx.extend(&out[..n]);
+    s.run_ms(50);
+    assert!(s.lbc.drive_enabled());
+    assert!(s.prog.radio_stats().unwrap().auth_bad_mac >= 1);
+}
+
+#[test]
+fn stream_format_request_adds_variables() {
+    let mut s = Sim::new();
+    s.bring_up();
+    let extra = 1 << 9; // range sensor
+    let Reply::StreamFormat(bits) = s.request(&Request::StreamFormat(extra)) else {
+        panic!()
+    };
+    assert_eq!(bits, ubc_app::program::REQUIRED_STREAM | extra);
+    assert_eq!(s.lbc.stream_format().bits(), bits);
+    s.run_ms(300);
+    assert_eq!(s.prog.phase(), Phase::Running);
+    assert_eq!(s.prog.counters().streams_lost, 0);
+    assert_eq!(s.prog.counters().stream_errors, 0);
+    let _ = CommandKind::UpdSf;
+}
+
+#[test]
+fn battery_and_temperature_warnings_show_on_the_red_led_and_are_reported() {
+    let mut s = Sim::new();
+    s.bring_up();
+    s.lbc.vehicle_mut().set_chip_temp_c(80.0);
+    assert!(s.run_until(2_500, |s| s.notices.contains(&Notice::Warnings(1))));
+    s.run_ms(100);
+    assert_eq!(s.lbc.leds().0[1].rate(), LedRate::Blink5Hz);
+    let st = s.status();
+    assert_ne!(
+        st.flags & ubc_app::program::console::flags::OVER_TEMPERATURE,
+        0
+    );
+    s.lbc.vehicle_mut().set_chip_temp_c(40.0);
+    s.lbc.vehicle_mut().set_soc(0.0);
+    assert!(s.run_until(2_500, |s| s.notices.contains(&Notice::Warnings(2))));
+    s.run_ms(100);
+    assert_eq!(s.lbc.leds().0[1].duty(), Duty::ON);
+}
+
+#[test]
+fn radio_key_provisioned_in_eeprom_is_used() {
+    let key = *b"0123456789abcdef";
+    let mut image = lbc_emu::EepromImage::factory(CAR);
+    for (i, w) in Key::new(key).to_eeprom_words().into_iter().enumerate() {
+        assert!(image.set(0x38 + i as u8, w));
+    }
+    let lbc = Lbc::new(
+        LbcConfig::default(),
+        image,
+        Box::new(lbc_emu::MemoryStore::default()),
+    );
+    let mut s = Sim::with_lbc(Config::default(), lbc, key);
+    s.bring_up();
+    assert_eq!(s.status().car_id, CAR);
+    // The default key no longer works on this car.
+    let mut other = GroundStation::new(GroundConfig::new(Key::new(DEFAULT_KEY), 1));
+    let mut buf = [0u8; 32];
+    let n = Request::Lbc(Command::Drds).encode(&mut buf).unwrap();
+    other
+        .command(s.now, Address::Car(CarId::new(CAR).unwrap()), 1, &buf[..n])
+        .unwrap();
+    let mut out = [0u8; 128];
+    let n = other.transmit(&mut out);
+    s.radio_port.rx.extend(&out[..n]);
+    s.run_ms(50);
+    assert!(s.lbc.drive_enabled());
+    assert!(s.prog.radio_stats().unwrap().auth_bad_mac >= 1);
+}
