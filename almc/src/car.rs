@@ -37,7 +37,7 @@ pub struct CarArgs {
     #[arg(long, value_name = "PATH")]
     state: Option<PathBuf>,
     /// How long to wait for the reply, ms.
-    #[arg(long, default_value_t = 5000)]
+    #[arg(long, default_value_t = 8000)]
     timeout_ms: u64,
     /// Stay connected this many seconds after the reply (the ground station's heartbeats keep
     /// the car's user link alive; the car stops 3 s after the ground station goes silent).

@@ -97,7 +97,7 @@ pub struct SendArgs {
     #[arg(long, value_name = "BYTES", default_value = "", value_parser = parse_hex)]
     hex: HexBytes,
     /// Give up on a car after this long (milliseconds).
-    #[arg(long, value_name = "MS", default_value_t = 2500,
+    #[arg(long, value_name = "MS", default_value_t = 8000,
           value_parser = clap::value_parser!(u64).range(1..=600_000))]
     timeout: u64,
     /// With --all: listen this long for cars first (seconds).

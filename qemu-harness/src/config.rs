@@ -136,8 +136,10 @@ fn chardev_arg(id: &str, attach: &UartAttach, sock_dir: &Path) -> OsString {
             s.push(",server=on,wait=on");
         }
         UartAttach::Connect(spec) => {
+            // Reconnect within a second when the peer (e.g. an emulated LBC) restarts.
             s.push(format!("socket,id={id},"));
             s.push(socket_target(spec));
+            s.push(",reconnect=1");
         }
         UartAttach::Listen(spec) => {
             s.push(format!("socket,id={id},"));
@@ -284,7 +286,7 @@ mod tests {
             tail,
             [
                 "-chardev",
-                "socket,id=lbc,path=/run/lbc,,emu.sock",
+                "socket,id=lbc,path=/run/lbc,,emu.sock,reconnect=1",
                 "-serial",
                 "chardev:lbc",
                 "-chardev",

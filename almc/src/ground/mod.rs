@@ -330,12 +330,23 @@ impl fmt::Debug for GroundLink {
     }
 }
 
+/// Retry ceiling of the user's requests (radio-mac's default is 320 ms).
+const USER_RETRY_MAX_US: u32 = 1_000_000;
+/// Transmissions of a user's request before it fails (40 ms doubling to 1 s: about 6.2 s).
+const USER_MAX_ATTEMPTS: u8 = 10;
+
 impl GroundLink {
     /// Open the radio at `spec` (`unix:PATH`, `tcp:IP:PORT`, `serial:DEV[@BAUD]`) and start
     /// the ground station with `key`; the first command uses `first_counter`.
     pub fn open(spec: &str, key: Key, first_counter: u32) -> Result<Self, GroundError> {
         let spec: TransportSpec = spec.parse().map_err(GroundError::Spec)?;
-        Self::open_spec(spec, GroundConfig::new(key, first_counter))
+        let mut config = GroundConfig::new(key, first_counter);
+        // A car answers a console request once its LBC has answered, which for EEPROM and
+        // calibration commands (and their retries on the LBC link) can take several seconds:
+        // keep retrying for about 6 s instead of radio-mac's default 1.9 s.
+        config.retry.max_us = USER_RETRY_MAX_US;
+        config.retry.max_attempts = USER_MAX_ATTEMPTS;
+        Self::open_spec(spec, config)
     }
 
     /// Open with a full ground-station configuration.
@@ -804,17 +815,21 @@ mod tests {
         let link = open(&w, KEY, 1);
         wait_for_cars(&link, 1);
         let t = Instant::now();
-        let r = link.request(CarId::new(1).unwrap(), 7, &[1], Duration::from_secs(4));
+        let r = link.request(CarId::new(1).unwrap(), 7, &[1], Duration::from_secs(10));
         assert!(
-            matches!(r, Err(GroundError::NoReply { attempts: 8, .. })),
+            matches!(r, Err(GroundError::NoReply { attempts: USER_MAX_ATTEMPTS, .. })),
             "{r:?}"
         );
-        // The protocol retries for about 1.9 s before giving up.
-        assert!(t.elapsed() > Duration::from_millis(1500));
+        // The user's requests are retried for about 6.2 s before giving up.
+        assert!(t.elapsed() > Duration::from_millis(5500));
         drop(link);
         let (reports, _) = w.stop();
         assert!(reports[0].executed.is_empty());
-        assert!(reports[0].stats.auth_bad_mac >= 7, "{:?}", reports[0].stats);
+        assert!(
+            reports[0].stats.auth_bad_mac >= u32::from(USER_MAX_ATTEMPTS) - 1,
+            "{:?}",
+            reports[0].stats
+        );
     }
 
     #[test]
