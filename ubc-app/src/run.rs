@@ -71,7 +71,7 @@ impl LogSink for Defmt {
             ),
             LogEvent::Console { tag, refused } => match refused {
                 Some(code) => defmt::info!("console tag={=u8:#x} refused={=u8:#x}", tag, code),
-                None => defmt::info!("console tag={=u8:#x}", tag),
+                None => defmt::debug!("console tag={=u8:#x}", tag),
             },
             LogEvent::ManeuverStarted { points } => {
                 defmt::info!("maneuver started: {=u8} points", points)
