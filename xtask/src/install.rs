@@ -107,3 +107,12 @@ pub fn ensure_qemu() -> Result<()> {
     }
     Ok(())
 }
+
+/// Verilator, for the soft core's test bench (`verilator-tb`).
+pub fn ensure_verilator() -> Result<()> {
+    ensure_debian_packages(&["verilator"])?;
+    if !have_command("verilator") {
+        bail!("verilator not found on PATH although the verilator package is installed");
+    }
+    Ok(())
+}

@@ -34,6 +34,9 @@ struct StageResult {
 }
 
 pub fn run(args: TestArgs) -> Result<()> {
+    // The soft core's Verilog is compiled by `verilator-tb`'s build script, which every
+    // workspace build (clippy and tests) runs.
+    install::ensure_verilator()?;
     let mut results: Vec<StageResult> = Vec::new();
     let mut totals = TestCounts::default();
 
