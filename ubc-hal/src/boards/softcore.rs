@@ -1,0 +1,327 @@
+//! `softcore`: the in-house RV32IMA SoC of `verilator-tb`. Same register layouts as qemu virt
+//! (16550 UARTs, CLINT, PLIC, SiFive-style exit register), so the drivers are shared; only the
+//! addresses and clocks below differ. The LBC link is UART0, the radio UART1 (no PCI), and
+//! defmt frames leave through the simulation-control console register (feature
+//! `console-logger`), which the test bench decodes with the image's defmt table.
+
+use crate::clint::Clint;
+use crate::exit::TestDevice;
+use crate::mmio::Mmio;
+use crate::plic::{Plic, Source};
+use crate::serial::{OpenError, Port, PortState};
+use crate::uart::{Config, Ns16550};
+use core::sync::atomic::{AtomicBool, Ordering};
+
+/// Board name, as used by `cargo xtask fw --board`.
+pub const NAME: &str = "softcore";
+/// Core clock of the SoC; the UARTs run from it (divisor 8 at 115200 baud).
+pub const CLOCK_HZ: u32 = 14_745_600;
+/// `mtime` counts core clock cycles.
+pub const TIMEBASE_HZ: u32 = CLOCK_HZ;
+
+/// Physical addresses used on this board.
+pub mod map {
+    /// Simulation control: exit register (SiFive test finisher values).
+    pub const SIM_CTRL: usize = 0x0010_0000;
+    /// Simulation control: console byte register (low 8 bits of a write).
+    pub const CONSOLE: usize = 0x0010_0004;
+    /// CLINT (msip, mtimecmp, mtime).
+    pub const CLINT: usize = 0x0200_0000;
+    /// PLIC (sources 1..=15, one context).
+    pub const PLIC: usize = 0x0C00_0000;
+    /// UART0: LBC link.
+    pub const UART0: usize = 0x1000_0000;
+    /// UART1: radio.
+    pub const UART1: usize = 0x1000_1000;
+    /// Start of RAM (1 MiB; see `boards/softcore/memory.x`).
+    pub const RAM: usize = 0x8000_0000;
+}
+
+/// PLIC interrupt sources.
+pub mod irq {
+    /// UART0 (LBC).
+    pub const UART0: u32 = 10;
+    /// UART1 (radio).
+    pub const UART1: u32 = 11;
+}
+
+/// PLIC priority of both UARTs (any nonzero value above the threshold 0 interrupts).
+const UART_PRIORITY: u8 = 1;
+/// PLIC context of hart 0 in machine mode.
+const PLIC_CONTEXT_M0: usize = 0;
+
+/// Exit status used when a CPU exception ends the run.
+pub const EXIT_EXCEPTION: u16 = 2;
+
+/// A UART port of this board.
+pub type Uart = Port<Mmio>;
+/// The clock of this board.
+pub type Clock = Clint<Mmio>;
+
+static LBC_PORT: PortState<Mmio> = PortState::new();
+static RADIO_PORT: PortState<Mmio> = PortState::new();
+static TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// Why the board cannot be brought up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum BoardError {
+    /// [`Board::take`] was called before.
+    AlreadyTaken,
+    /// The LBC UART could not be opened.
+    Lbc(OpenError),
+}
+
+/// Why the radio UART is missing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RadioError {
+    /// The UART could not be opened.
+    Open(OpenError),
+}
+
+/// Where the radio UART sits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RadioInfo {
+    /// Register base address.
+    pub base: usize,
+    /// Its PLIC source number.
+    pub plic_source: u32,
+}
+
+/// Everything the board hands out.
+#[derive(Debug)]
+#[non_exhaustive]
+pub struct Board {
+    /// Link to the lower board (UART0, PLIC source 10).
+    pub lbc: Uart,
+    /// The radio (UART1, PLIC source 11).
+    pub radio: Result<Uart, RadioError>,
+    /// Where the radio sits, when it opened.
+    pub radio_info: Option<RadioInfo>,
+    /// CLINT time and wakeups.
+    pub clock: Clock,
+    /// Exit device.
+    pub exit: TestDevice<Mmio>,
+    /// The interrupt controller (hart 0, machine mode), already routing both UARTs.
+    pub plic: Plic<Mmio>,
+}
+
+/// The CLINT. Reading time is harmless from anywhere (e.g. log timestamps).
+pub fn clock() -> Clock {
+    // SAFETY: the CLINT's register block on the softcore SoC.
+    Clint::new(unsafe { Mmio::new(map::CLINT) }, TIMEBASE_HZ)
+}
+
+/// The exit device, for panic and fault paths that own nothing.
+pub fn exit_device() -> TestDevice<Mmio> {
+    // SAFETY: the simulation-control exit register, which takes the SiFive test values.
+    TestDevice::new(unsafe { Mmio::new(map::SIM_CTRL) })
+}
+
+fn plic() -> Plic<Mmio> {
+    // SAFETY: the PLIC's register block on the softcore SoC.
+    Plic::new(unsafe { Mmio::new(map::PLIC) }, PLIC_CONTEXT_M0)
+}
+
+impl Board {
+    /// Brings the board up once: PLIC, both UARTs, and (with the `rt` feature on the target)
+    /// external and timer interrupts.
+    pub fn take() -> Result<Self, BoardError> {
+        if TAKEN.swap(true, Ordering::AcqRel) {
+            return Err(BoardError::AlreadyTaken);
+        }
+        let plic = plic();
+        plic.set_threshold(0);
+        let clock = clock();
+        clock.clear_wakeup();
+
+        // SAFETY: UART0's register block on the softcore SoC.
+        let uart0 = Ns16550::new(unsafe { Mmio::new(map::UART0) });
+        let lbc = LBC_PORT
+            .open(uart0, &Config::with_clock(CLOCK_HZ))
+            .map_err(BoardError::Lbc)?;
+        enable_source(&plic, irq::UART0);
+
+        // SAFETY: UART1's register block on the softcore SoC.
+        let uart1 = Ns16550::new(unsafe { Mmio::new(map::UART1) });
+        let (radio, radio_info) = match RADIO_PORT.open(uart1, &Config::with_clock(CLOCK_HZ)) {
+            Ok(port) => {
+                enable_source(&plic, irq::UART1);
+                let info = RadioInfo {
+                    base: map::UART1,
+                    plic_source: irq::UART1,
+                };
+                (Ok(port), Some(info))
+            }
+            Err(e) => (Err(RadioError::Open(e)), None),
+        };
+
+        #[cfg(all(feature = "rt", target_arch = "riscv32"))]
+        handlers::enable();
+
+        Ok(Self {
+            lbc,
+            radio,
+            radio_info,
+            clock,
+            exit: exit_device(),
+            plic,
+        })
+    }
+}
+
+fn enable_source(plic: &Plic<Mmio>, n: u32) {
+    if let Some(source) = Source::new(n) {
+        plic.set_priority(source, UART_PRIORITY);
+        plic.enable(source);
+    }
+}
+
+/// Serves every pending PLIC source (the machine external interrupt).
+pub fn on_external_interrupt() {
+    let plic = plic();
+    while let Some(source) = plic.claim() {
+        match source.number() {
+            irq::UART0 => LBC_PORT.on_interrupt(),
+            irq::UART1 => RADIO_PORT.on_interrupt(),
+            _ => {}
+        }
+        plic.complete(source);
+    }
+}
+
+/// Serves the machine timer interrupt: it only ends an idle, so disarm it.
+pub fn on_timer_interrupt() {
+    clock().clear_wakeup();
+}
+
+#[cfg(all(feature = "console-logger", target_arch = "riscv32"))]
+defmt::timestamp!("{=u64:us}", clock().micros());
+
+/// defmt global logger writing encoded frames, byte by byte, to the console register. A
+/// critical section covers each frame, so frames from interrupt handlers and the program never
+/// interleave.
+#[cfg(all(feature = "console-logger", target_arch = "riscv32"))]
+mod console_logger {
+    use super::map;
+    use crate::mmio::{Mmio, RegisterBus};
+    use core::cell::UnsafeCell;
+    use core::sync::atomic::{AtomicBool, Ordering};
+
+    fn emit(bytes: &[u8]) {
+        // SAFETY: the console register of the simulation-control device.
+        let console = unsafe { Mmio::new(map::CONSOLE) };
+        for &b in bytes {
+            console.write32(0, u32::from(b));
+        }
+    }
+
+    struct State {
+        encoder: defmt::Encoder,
+        restore: critical_section::RestoreState,
+    }
+
+    struct Shared(UnsafeCell<State>);
+
+    // SAFETY: `State` is only touched between `acquire` and `release`, which hold a critical
+    // section (single hart: interrupts off) and the `TAKEN` flag.
+    unsafe impl Sync for Shared {}
+
+    static TAKEN: AtomicBool = AtomicBool::new(false);
+    static STATE: Shared = Shared(UnsafeCell::new(State {
+        encoder: defmt::Encoder::new(),
+        restore: critical_section::RestoreState::invalid(),
+    }));
+
+    #[defmt::global_logger]
+    struct ConsoleLogger;
+
+    // SAFETY: frames are serialised by the critical section taken in `acquire` and released
+    // in `release`; `write`/`flush`/`release` are only called by defmt between those two.
+    unsafe impl defmt::Logger for ConsoleLogger {
+        fn acquire() {
+            // SAFETY: paired with the `critical_section::release` in `release`.
+            let restore = unsafe { critical_section::acquire() };
+            if TAKEN.swap(true, Ordering::Acquire) {
+                panic!("defmt logger re-entered");
+            }
+            // SAFETY: we hold the critical section and the `TAKEN` flag.
+            let state = unsafe { &mut *STATE.0.get() };
+            state.restore = restore;
+            state.encoder.start_frame(emit);
+        }
+
+        unsafe fn flush() {
+            // Every byte reaches the console register as soon as it is encoded.
+        }
+
+        unsafe fn release() {
+            // SAFETY: called after `acquire`, which took the critical section and the flag.
+            let state = unsafe { &mut *STATE.0.get() };
+            state.encoder.end_frame(emit);
+            let restore = state.restore;
+            TAKEN.store(false, Ordering::Release);
+            // SAFETY: releases the critical section `acquire` took, exactly once.
+            unsafe { critical_section::release(restore) };
+        }
+
+        unsafe fn write(bytes: &[u8]) {
+            // SAFETY: called between `acquire` and `release`.
+            let state = unsafe { &mut *STATE.0.get() };
+            state.encoder.write(bytes, emit);
+        }
+    }
+}
+
+#[cfg(all(feature = "rt", target_arch = "riscv32"))]
+mod handlers {
+    use riscv::interrupt::machine::Interrupt;
+
+    pub(super) fn enable() {
+        // SAFETY: the handlers below serve both sources; their shared state is behind
+        // critical sections and atomics.
+        unsafe {
+            riscv::interrupt::machine::enable_interrupt(Interrupt::MachineExternal);
+            riscv::interrupt::machine::enable_interrupt(Interrupt::MachineTimer);
+        }
+        crate::cpu::enable_interrupts();
+    }
+
+    #[riscv_rt::core_interrupt(Interrupt::MachineExternal)]
+    fn machine_external() {
+        super::on_external_interrupt();
+    }
+
+    #[riscv_rt::core_interrupt(Interrupt::MachineTimer)]
+    fn machine_timer() {
+        super::on_timer_interrupt();
+    }
+
+    /// Any CPU exception is a firmware bug: report it and end the run.
+    #[export_name = "ExceptionHandler"]
+    fn exception_handler(_frame: &riscv_rt::TrapFrame) -> ! {
+        #[cfg(feature = "console-logger")]
+        defmt::error!(
+            "exception: mcause={=usize:#x} mepc={=usize:#x} mtval={=usize:#x}",
+            riscv::register::mcause::read().bits(),
+            riscv::register::mepc::read(),
+            riscv::register::mtval::read()
+        );
+        super::exit_device().fail(super::EXIT_EXCEPTION)
+    }
+
+    /// An interrupt without a handler: report it and end the run.
+    #[export_name = "DefaultHandler"]
+    fn default_handler() -> ! {
+        #[cfg(feature = "console-logger")]
+        defmt::error!(
+            "unexpected interrupt: mcause={=usize:#x}",
+            riscv::register::mcause::read().bits()
+        );
+        super::exit_device().fail(super::EXIT_EXCEPTION)
+    }
+}

@@ -1,0 +1,95 @@
+//! Verilates the SoC (rtl/*.v) and compiles the C++ model with the shim in csrc/.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+const RTL: &[&str] = &[
+    "rtl/soc.v",
+    "rtl/rv_core.v",
+    "rtl/uart16550.v",
+    "rtl/clint.v",
+    "rtl/plic.v",
+];
+
+fn verilator_root() -> PathBuf {
+    if let Ok(root) = std::env::var("VERILATOR_ROOT") {
+        return PathBuf::from(root);
+    }
+    let out = Command::new("verilator")
+        .arg("--getenv")
+        .arg("VERILATOR_ROOT")
+        .output();
+    match out {
+        Ok(o) if o.status.success() => {
+            PathBuf::from(String::from_utf8_lossy(&o.stdout).trim().to_string())
+        }
+        _ => PathBuf::from("/usr/share/verilator"),
+    }
+}
+
+fn main() {
+    let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+    let mdir = out_dir.join("obj_dir");
+    for f in RTL.iter().chain(["csrc/shim.cpp", "build.rs"].iter()) {
+        println!("cargo:rerun-if-changed={f}");
+    }
+    println!("cargo:rerun-if-env-changed=VERILATOR_ROOT");
+
+    let _ = std::fs::remove_dir_all(&mdir);
+    let status = Command::new("verilator")
+        .args([
+            "--cc",
+            "-O2",
+            "--x-assign",
+            "fast",
+            "--x-initial",
+            "fast",
+            "--noassert",
+        ])
+        .args([
+            "-Wall",
+            "-Wno-fatal",
+            "-Wno-UNUSEDSIGNAL",
+            "--top-module",
+            "soc",
+        ])
+        .arg("--Mdir")
+        .arg(&mdir)
+        .args(RTL)
+        .status();
+    match status {
+        Ok(s) if s.success() => {}
+        Ok(s) => panic!("verilator failed on the RTL ({s})"),
+        Err(e) => panic!(
+            "cannot run `verilator` ({e}): install it (Debian/Ubuntu package `verilator`, \
+             5.006 or later) or put it on PATH"
+        ),
+    }
+
+    let root = verilator_root();
+    let include = root.join("include");
+    let mut build = cc::Build::new();
+    build
+        .cpp(true)
+        .std("c++17")
+        .opt_level(1)
+        .debug(false)
+        .warnings(false)
+        .include(&include)
+        .include(include.join("vltstd"))
+        .include(&mdir)
+        .file("csrc/shim.cpp")
+        .file(include.join("verilated.cpp"))
+        .file(include.join("verilated_threads.cpp"));
+    let mut generated: Vec<PathBuf> = std::fs::read_dir(&mdir)
+        .expect("verilator wrote its output directory")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "cpp"))
+        .collect();
+    generated.sort();
+    for f in &generated {
+        build.file(f);
+    }
+    build.compile("vsoc");
+    println!("cargo:rustc-link-lib=dylib=pthread");
+}

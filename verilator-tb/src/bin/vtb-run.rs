@@ -1,0 +1,111 @@
+//! Runs a firmware ELF on the Verilated SoC: prints the defmt console (decoded with the ELF's
+//! table) and the UART output, then the exit, cycle count, CPI and simulation speed.
+
+use clap::Parser;
+use lbc_emu::{Lbc, LbcConfig};
+use qemu_harness::{LineDecoder, LogFormat};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+use verilator_tb::cosim::LbcCosim;
+use verilator_tb::soc::{Event, Exit, Soc, Uart, CLOCK_HZ};
+
+#[derive(Debug, Parser)]
+#[command(about = "Run a firmware image on the Verilated softcore SoC")]
+struct Args {
+    /// Firmware ELF (linked at 0x8000_0000).
+    elf: PathBuf,
+    /// Stop after this many clock cycles.
+    #[arg(long, default_value_t = 50_000_000)]
+    max_cycles: u64,
+    /// Bytes to send to the LBC UART at start (hex, e.g. `80a1ff`).
+    #[arg(long, conflicts_with = "lbc_emu")]
+    lbc_hex: Option<String>,
+    /// Attach an emulated lower board with this car ID to the LBC UART.
+    #[arg(long)]
+    lbc_emu: Option<u8>,
+}
+
+fn parse_hex(s: &str) -> Option<Vec<u8>> {
+    if !s.len().is_multiple_of(2) {
+        return None;
+    }
+    (0..s.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok())
+        .collect()
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let bytes = match std::fs::read(&args.elf) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("cannot read {}: {e}", args.elf.display());
+            return ExitCode::from(2);
+        }
+    };
+    let format = match LogFormat::from_elf_bytes(&bytes, &args.elf) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(2);
+        }
+    };
+    let mut soc = Soc::new();
+    if let Err(e) = soc.load_elf(&bytes) {
+        eprintln!("{}: {e}", args.elf.display());
+        return ExitCode::from(2);
+    }
+    if let Some(hex) = &args.lbc_hex {
+        let Some(data) = parse_hex(hex) else {
+            eprintln!("--lbc-hex: not an even-length hex string");
+            return ExitCode::from(2);
+        };
+        soc.send(Uart::Lbc, &data);
+    }
+    let mut decoder = LineDecoder::new(&format);
+    let mut lines = Vec::new();
+    let start = Instant::now();
+    let (soc, events) = match args.lbc_emu {
+        Some(car) => {
+            let lbc = Lbc::with_memory_eeprom(LbcConfig::default(), car);
+            let mut cosim = LbcCosim::new(soc, lbc);
+            let events = cosim.run(args.max_cycles);
+            (cosim.soc, events)
+        }
+        None => {
+            soc.release();
+            let events = soc.run(args.max_cycles);
+            (soc, events)
+        }
+    };
+    let wall = start.elapsed().as_secs_f64();
+    let mut exit = None;
+    for e in &events {
+        match e.value {
+            Event::Console(b) => decoder.push(&[b], Instant::now(), &mut lines),
+            Event::Tx { uart, byte } => println!("[{:>12}] {uart:?} tx {byte:#04x}", e.cycle),
+            Event::Exit(x) => exit = Some(x),
+        }
+        for l in lines.drain(..) {
+            println!("[{:>12}] {l}", e.cycle);
+        }
+    }
+    let cycles = soc.cycle();
+    let retired = soc.retired();
+    let awake = cycles.saturating_sub(soc.sleep_cycles());
+    println!(
+        "exit {exit:?} after {cycles} cycles ({:.3} s at {CLOCK_HZ} Hz), {retired} instructions; \
+         awake {awake} cycles, CPI while awake {:.3}; {:.2} M cycles/s ({:.2} s wall)",
+        cycles as f64 / f64::from(CLOCK_HZ),
+        awake as f64 / retired.max(1) as f64,
+        cycles as f64 / wall / 1e6,
+        wall
+    );
+    match exit {
+        Some(Exit::Pass) => ExitCode::SUCCESS,
+        Some(Exit::Fail(code)) => ExitCode::from(u8::try_from(code).unwrap_or(255)),
+        _ => ExitCode::from(3),
+    }
+}

@@ -1,0 +1,433 @@
+//! Cycle-level harness for the SoC: loads a program, steps the clock, paces bytes into the
+//! UARTs at the line rate and collects everything the SoC emits, stamped with the cycle it
+//! appeared in. Runs are deterministic: the same program and inputs give the same trace.
+
+use crate::golden::Retire;
+use crate::model::{Io, Model};
+use std::collections::VecDeque;
+
+/// Core clock of the SoC in Hz (128 clocks per bit at 115200 baud; divisor 8).
+pub const CLOCK_HZ: u32 = 14_745_600;
+/// Rate of the CLINT's mtime: it counts core clocks.
+pub const TIMEBASE_HZ: u32 = CLOCK_HZ;
+/// UART line rate the harness paces received bytes at.
+pub const BAUD: u32 = 115_200;
+/// Clocks per 8N1 character at [`BAUD`].
+pub const CHAR_CYCLES: u64 = (CLOCK_HZ / BAUD) as u64 * 10;
+/// Base address of RAM, where execution starts.
+pub const RAM_BASE: u32 = 0x8000_0000;
+/// RAM size in bytes.
+pub const RAM_SIZE: u32 = 1 << 20;
+
+/// Memory map of the SoC.
+pub mod map {
+    /// Simulation control: +0 exit (SiFive test finisher values), +4 console byte.
+    pub const SIM_CTRL: u32 = 0x0010_0000;
+    pub const CLINT: u32 = 0x0200_0000;
+    pub const PLIC: u32 = 0x0c00_0000;
+    pub const UART0: u32 = 0x1000_0000;
+    pub const UART1: u32 = 0x1000_1000;
+    pub const RAM: u32 = super::RAM_BASE;
+}
+
+/// PLIC source numbers.
+pub mod irq {
+    pub const UART0: u32 = 10;
+    pub const UART1: u32 = 11;
+}
+
+/// The SoC's two UARTs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Uart {
+    /// UART0, the LBC link.
+    Lbc,
+    /// UART1, the radio.
+    Radio,
+}
+
+/// How a run ended, as written to the simulation-control exit register.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Exit {
+    /// Finisher value 0x5555.
+    Pass,
+    /// Finisher value `code << 16 | 0x3333`.
+    Fail(u16),
+    /// Finisher value 0x7777.
+    Reset,
+    /// Any other value written to the exit register.
+    Other(u32),
+}
+
+impl Exit {
+    /// Decodes a value written to the exit register.
+    pub fn decode(v: u32) -> Self {
+        match v & 0xffff {
+            0x5555 => Self::Pass,
+            0x3333 => Self::Fail((v >> 16) as u16),
+            0x7777 => Self::Reset,
+            _ => Self::Other(v),
+        }
+    }
+}
+
+/// Something the SoC emitted in one clock cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Event {
+    /// A byte finished transmitting (its stop bit ended) on a UART.
+    Tx { uart: Uart, byte: u8 },
+    /// A byte written to the console register.
+    Console(u8),
+    /// The program wrote the exit register.
+    Exit(Exit),
+}
+
+/// An event and the cycle it appeared in (cycles since reset was released).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Stamped<T> {
+    pub cycle: u64,
+    pub value: T,
+}
+
+/// Why a program cannot be loaded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LoadError {
+    /// The range `addr..addr + len` does not lie inside RAM.
+    OutsideRam { addr: u32, len: u32 },
+    /// The address is not word aligned.
+    Unaligned { addr: u32 },
+}
+
+impl core::fmt::Display for LoadError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::OutsideRam { addr, len } => {
+                write!(f, "{len} bytes at {addr:#010x} do not fit in RAM")
+            }
+            Self::Unaligned { addr } => write!(f, "load address {addr:#010x} is not word aligned"),
+        }
+    }
+}
+
+impl std::error::Error for LoadError {}
+
+/// Why an ELF image cannot be loaded.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ElfError {
+    /// Not a readable ELF file.
+    Parse(String),
+    /// Not a 32-bit little-endian RISC-V image.
+    WrongMachine { architecture: String },
+    /// The entry point is not where the core starts.
+    Entry { entry: u64 },
+    /// A loadable segment lies outside RAM.
+    Segment(LoadError),
+}
+
+impl core::fmt::Display for ElfError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Parse(why) => write!(f, "not a readable ELF file: {why}"),
+            Self::WrongMachine { architecture } => {
+                write!(f, "not an RV32 image (architecture {architecture})")
+            }
+            Self::Entry { entry } => {
+                write!(
+                    f,
+                    "entry point {entry:#x} is not the reset address {RAM_BASE:#x}"
+                )
+            }
+            Self::Segment(e) => write!(f, "segment: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for ElfError {}
+
+/// The SoC with its stimulus queues.
+#[derive(Debug)]
+pub struct Soc {
+    model: Model,
+    io: Io,
+    cycle: u64,
+    rx: [VecDeque<u8>; 2],
+    next_rx: [u64; 2],
+    ext_irq: bool,
+}
+
+impl Default for Soc {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Soc {
+    /// A SoC held in reset with zeroed RAM.
+    pub fn new() -> Self {
+        let mut soc = Self {
+            model: Model::new(),
+            io: Io {
+                rst: 1,
+                ..Io::default()
+            },
+            cycle: 0,
+            rx: [VecDeque::new(), VecDeque::new()],
+            next_rx: [0; 2],
+            ext_irq: false,
+        };
+        soc.model.run(&mut soc.io, 2, false);
+        soc
+    }
+
+    /// Copies `words` into RAM at `addr` (the core stays in reset until [`Soc::release`]).
+    pub fn load_words(&mut self, addr: u32, words: &[u32]) -> Result<(), LoadError> {
+        if !addr.is_multiple_of(4) {
+            return Err(LoadError::Unaligned { addr });
+        }
+        let len = u32::try_from(words.len() * 4).unwrap_or(u32::MAX);
+        let off = addr.wrapping_sub(RAM_BASE);
+        if addr < RAM_BASE || u64::from(off) + u64::from(len) > u64::from(RAM_SIZE) {
+            return Err(LoadError::OutsideRam { addr, len });
+        }
+        self.model.load(off / 4, words);
+        Ok(())
+    }
+
+    /// Copies `bytes` into RAM at `addr` (little endian; the last word is zero padded).
+    pub fn load_bytes(&mut self, addr: u32, bytes: &[u8]) -> Result<(), LoadError> {
+        let words: Vec<u32> = bytes
+            .chunks(4)
+            .map(|c| {
+                let mut w = [0u8; 4];
+                w[..c.len()].copy_from_slice(c);
+                u32::from_le_bytes(w)
+            })
+            .collect();
+        self.load_words(addr, &words)
+    }
+
+    /// Loads the file bytes of the PT_LOAD segments of an RV32 ELF image into a fresh SoC (RAM
+    /// starts zeroed, which covers the segments' zero-filled tails). The entry point must be
+    /// [`RAM_BASE`].
+    pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), ElfError> {
+        use object::read::elf::{ElfFile32, FileHeader, ProgramHeader};
+        use object::{Architecture, Object};
+        let file = ElfFile32::<object::LittleEndian>::parse(elf)
+            .map_err(|e| ElfError::Parse(e.to_string()))?;
+        if file.architecture() != Architecture::Riscv32 {
+            return Err(ElfError::WrongMachine {
+                architecture: format!("{:?}", file.architecture()),
+            });
+        }
+        if file.entry() != u64::from(RAM_BASE) {
+            return Err(ElfError::Entry {
+                entry: file.entry(),
+            });
+        }
+        let endian = file.endian();
+        let headers = file
+            .elf_header()
+            .program_headers(endian, elf)
+            .map_err(|e| ElfError::Parse(e.to_string()))?;
+        for ph in headers {
+            if ph.p_type(endian) != object::elf::PT_LOAD || ph.p_filesz(endian) == 0 {
+                continue;
+            }
+            let addr = ph.p_paddr(endian);
+            let data = ph
+                .data(endian, elf)
+                .map_err(|()| ElfError::Parse("segment data".into()))?;
+            let pad = (addr % 4) as usize;
+            let mut aligned = vec![0u8; pad];
+            aligned.extend_from_slice(data);
+            self.load_bytes(addr - pad as u32, &aligned)
+                .map_err(ElfError::Segment)?;
+        }
+        Ok(())
+    }
+
+    /// Releases reset: the core starts at [`RAM_BASE`]; cycle 0 is the first clock after.
+    pub fn release(&mut self) {
+        // one more clock in reset fetches the first instruction from the loaded image
+        self.io.rst = 1;
+        self.model.run(&mut self.io, 1, false);
+        self.io.rst = 0;
+        self.cycle = 0;
+    }
+
+    /// Cycles run since reset was released.
+    pub fn cycle(&self) -> u64 {
+        self.cycle
+    }
+
+    /// Instructions retired since the SoC was created (traps included).
+    pub fn retired(&self) -> u64 {
+        self.io.retired
+    }
+
+    /// Cycles the core spent asleep in WFI since the SoC was created.
+    pub fn sleep_cycles(&self) -> u64 {
+        self.io.sleep_cycles
+    }
+
+    /// Queues bytes for a UART's receiver; they arrive one character time apart, the first
+    /// as soon as the line is free.
+    pub fn send(&mut self, uart: Uart, bytes: &[u8]) {
+        self.send_at(uart, self.cycle, bytes);
+    }
+
+    /// Like [`Soc::send`], but the first byte arrives no earlier than cycle `at`.
+    pub fn send_at(&mut self, uart: Uart, at: u64, bytes: &[u8]) {
+        let i = uart_index(uart);
+        if self.rx[i].is_empty() {
+            self.next_rx[i] = self.next_rx[i].max(at);
+        }
+        self.rx[i].extend(bytes);
+    }
+
+    /// Drives the test bench's external interrupt line.
+    pub fn set_external_irq(&mut self, level: bool) {
+        self.ext_irq = level;
+    }
+
+    /// Runs one clock cycle; returns the retirement record and events it produced.
+    pub fn step(&mut self) -> (Option<Retire>, Vec<Event>) {
+        self.advance(1, true)
+    }
+
+    /// Runs until the first event, a retirement (if `stop_on_retire`), or `max_cycles`.
+    fn advance(&mut self, max_cycles: u64, stop_on_retire: bool) -> (Option<Retire>, Vec<Event>) {
+        self.io.tb_meip = u8::from(self.ext_irq);
+        self.io.uart0_rx_valid = 0;
+        self.io.uart1_rx_valid = 0;
+        for i in 0..2 {
+            if self.next_rx[i] <= self.cycle {
+                if let Some(b) = self.rx[i].pop_front() {
+                    if i == 0 {
+                        self.io.uart0_rx_valid = 1;
+                        self.io.uart0_rx_data = b;
+                    } else {
+                        self.io.uart1_rx_valid = 1;
+                        self.io.uart1_rx_data = b;
+                    }
+                    self.next_rx[i] = self.cycle + CHAR_CYCLES;
+                }
+            }
+        }
+        let mut limit = max_cycles.max(1);
+        for (i, q) in self.rx.iter().enumerate() {
+            if !q.is_empty() {
+                limit = limit.min(self.next_rx[i].saturating_sub(self.cycle).max(1));
+            }
+        }
+        let n = self.model.run(&mut self.io, limit, stop_on_retire);
+        self.cycle += n;
+        let retire = self.io.retire();
+        let mut events = Vec::new();
+        if self.io.uart0_tx_valid != 0 {
+            events.push(Event::Tx {
+                uart: Uart::Lbc,
+                byte: self.io.uart0_tx_data,
+            });
+        }
+        if self.io.uart1_tx_valid != 0 {
+            events.push(Event::Tx {
+                uart: Uart::Radio,
+                byte: self.io.uart1_tx_data,
+            });
+        }
+        if self.io.console_valid != 0 {
+            events.push(Event::Console(self.io.console_data));
+        }
+        if self.io.sim_exit_valid != 0 {
+            events.push(Event::Exit(Exit::decode(self.io.sim_exit_value)));
+        }
+        (retire, events)
+    }
+
+    /// Runs until the program exits or `max_cycles` have passed; returns every event with its
+    /// cycle, ending with the exit if there was one.
+    pub fn run(&mut self, max_cycles: u64) -> Vec<Stamped<Event>> {
+        let end = self.cycle + max_cycles;
+        let mut out = Vec::new();
+        while self.cycle < end {
+            let (_, events) = self.advance(end - self.cycle, false);
+            let stop = events.iter().any(|e| matches!(e, Event::Exit(_)));
+            out.extend(events.into_iter().map(|value| Stamped {
+                cycle: self.cycle,
+                value,
+            }));
+            if stop {
+                break;
+            }
+        }
+        out
+    }
+
+    /// Last RVFI record's view of the raw port struct (for the lockstep checker).
+    pub(crate) fn last_lines(&self) -> (u8, u8) {
+        (self.io.rvfi_ext_mip, self.io.rvfi_ext_intr_mip)
+    }
+}
+
+fn uart_index(uart: Uart) -> usize {
+    match uart {
+        Uart::Lbc => 0,
+        Uart::Radio => 1,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exit_values_decode() {
+        assert_eq!(Exit::decode(0x5555), Exit::Pass);
+        assert_eq!(Exit::decode(0x0042_3333), Exit::Fail(0x42));
+        assert_eq!(Exit::decode(0x7777), Exit::Reset);
+        assert_eq!(Exit::decode(0x1234), Exit::Other(0x1234));
+    }
+
+    #[test]
+    fn loads_outside_ram_are_refused() {
+        let mut soc = Soc::new();
+        assert_eq!(
+            soc.load_words(RAM_BASE - 4, &[0]),
+            Err(LoadError::OutsideRam {
+                addr: RAM_BASE - 4,
+                len: 4
+            })
+        );
+        assert_eq!(
+            soc.load_words(RAM_BASE + RAM_SIZE - 4, &[0, 0]),
+            Err(LoadError::OutsideRam {
+                addr: RAM_BASE + RAM_SIZE - 4,
+                len: 8
+            })
+        );
+        assert_eq!(
+            soc.load_words(RAM_BASE + 2, &[0]),
+            Err(LoadError::Unaligned { addr: RAM_BASE + 2 })
+        );
+        assert!(matches!(
+            soc.load_elf(b"not an elf"),
+            Err(ElfError::Parse(_))
+        ));
+    }
+
+    #[test]
+    fn runs_are_deterministic() {
+        // A program that sits in a loop: the run is then a pure function of the input.
+        let trace = || {
+            let mut soc = Soc::new();
+            soc.load_words(RAM_BASE, &[crate::isa::jal(0, 0)]).unwrap();
+            soc.release();
+            soc.send(Uart::Lbc, b"ab");
+            let events = soc.run(3 * CHAR_CYCLES);
+            (events, soc.cycle(), soc.retired())
+        };
+        let a = trace();
+        assert_eq!(a, trace());
+        assert_eq!(a.1, 3 * CHAR_CYCLES);
+    }
+}

@@ -1,0 +1,512 @@
+//! Directed tests: every instruction, every trap cause and every interrupt source, each run in
+//! lockstep with the golden model, and each checked against values worked out by hand here.
+mod common;
+use common::*;
+use verilator_tb::golden::cause;
+use verilator_tb::isa::{self, csr, reg::*};
+use verilator_tb::lockstep::Stimulus;
+use verilator_tb::soc::{map, RAM_BASE};
+
+/// Where the programs keep results.
+const OUT: u32 = RAM_BASE + 0x8_0000;
+const S2: u8 = 18;
+
+/// A branch encoder: `(rs1, rs2, offset)`.
+type Branch = fn(u8, u8, i32) -> u32;
+
+/// Runs `op rd, a0, a1` for each (a, b) and checks the result word by word.
+fn binop_cases(op: impl Fn(u8, u8, u8) -> u32, cases: &[(u32, u32, u32)]) {
+    let mut p = Prog::new();
+    p.li(S0, OUT);
+    for (k, (a, b, _)) in cases.iter().enumerate() {
+        p.li(A0, *a)
+            .li(A1, *b)
+            .i(op(A2, A0, A1))
+            .i(isa::sw(A2, S0, 4 * k as i32));
+    }
+    p.exit_pass();
+    let (_, ls) = run_pass(&p);
+    for (k, (a, b, want)) in cases.iter().enumerate() {
+        let got = ls.model_word(OUT + 4 * k as u32).unwrap();
+        assert_eq!(got, *want, "case {k}: a={a:#x} b={b:#x}");
+    }
+}
+
+#[test]
+fn register_register_alu() {
+    binop_cases(
+        isa::add,
+        &[
+            (1, 2, 3),
+            (0xffff_ffff, 1, 0),
+            (0x7fff_ffff, 1, 0x8000_0000),
+        ],
+    );
+    binop_cases(
+        isa::sub,
+        &[(1, 2, 0xffff_ffff), (0x8000_0000, 1, 0x7fff_ffff)],
+    );
+    binop_cases(
+        isa::sll,
+        &[(1, 31, 0x8000_0000), (3, 33, 6), (0xf0, 4, 0xf00)],
+    );
+    binop_cases(
+        isa::slt,
+        &[(0xffff_ffff, 0, 1), (0, 0xffff_ffff, 0), (5, 5, 0)],
+    );
+    binop_cases(
+        isa::sltu,
+        &[(0xffff_ffff, 0, 0), (0, 0xffff_ffff, 1), (4, 5, 1)],
+    );
+    binop_cases(isa::xor, &[(0xff00_ff00, 0x0ff0_0ff0, 0xf0f0_f0f0)]);
+    binop_cases(
+        isa::srl,
+        &[(0x8000_0000, 31, 1), (0x8000_0000, 35, 0x1000_0000)],
+    );
+    binop_cases(
+        isa::sra,
+        &[(0x8000_0000, 31, 0xffff_ffff), (0x4000_0000, 30, 1)],
+    );
+    binop_cases(isa::or, &[(0xff00_0000, 0x0000_00ff, 0xff00_00ff)]);
+    binop_cases(isa::and, &[(0xff0f_0f0f, 0x0fff_00ff, 0x0f0f_000f)]);
+}
+
+#[test]
+fn multiply_divide() {
+    let m = |f3: u32| move |rd, a, b| isa::muldiv(f3, rd, a, b);
+    binop_cases(
+        m(0),
+        &[
+            (7, 6, 42),
+            (0xffff_ffff, 0xffff_ffff, 1),
+            (0x1_0001, 0x1_0001, 0x2_0001),
+        ],
+    );
+    binop_cases(
+        m(1),
+        &[
+            (0xffff_ffff, 0xffff_ffff, 0),
+            (0x8000_0000, 0x8000_0000, 0x4000_0000),
+            (0x8000_0000, 2, 0xffff_ffff),
+        ],
+    );
+    binop_cases(
+        m(2),
+        &[(0xffff_ffff, 0xffff_ffff, 0xffff_ffff), (2, 0x8000_0000, 1)],
+    );
+    binop_cases(
+        m(3),
+        &[(0xffff_ffff, 0xffff_ffff, 0xffff_fffe), (0x8000_0000, 4, 2)],
+    );
+    binop_cases(
+        m(4),
+        &[
+            (20, 3, 6),
+            (0xffff_ffec, 3, 0xffff_fffa),
+            (5, 0, 0xffff_ffff),
+            (0x8000_0000, 0xffff_ffff, 0x8000_0000),
+        ],
+    );
+    binop_cases(
+        m(5),
+        &[
+            (20, 3, 6),
+            (0xffff_ffff, 2, 0x7fff_ffff),
+            (5, 0, 0xffff_ffff),
+        ],
+    );
+    binop_cases(
+        m(6),
+        &[
+            (20, 3, 2),
+            (0xffff_ffec, 3, 0xffff_fffe),
+            (5, 0, 5),
+            (0x8000_0000, 0xffff_ffff, 0),
+        ],
+    );
+    binop_cases(m(7), &[(20, 3, 2), (0xffff_ffff, 16, 15), (5, 0, 5)]);
+}
+
+#[test]
+fn immediates_and_upper() {
+    let mut p = Prog::new();
+    p.li(A0, 0x8000_0001);
+    p.i(isa::addi(A1, A0, -1)); // 0x8000_0000
+    p.i(isa::slti(A2, A0, 0)); // 1
+    p.i(isa::sltiu(A3, A0, -1)); // 1 (imm is 0xffff_ffff)
+    p.i(isa::xori(T2, A0, -1)); // 0x7fff_fffe
+    p.i(isa::ori(S1, 0, 0x7ff)); // 0x7ff
+    p.i(isa::andi(14, A0, 0xf)); // 1
+    p.i(isa::slli(15, A0, 4)); // 0x10
+    p.i(isa::srli(16, A0, 28)); // 8
+    p.i(isa::srai(17, A0, 28)); // 0xffff_fff8
+    p.i(isa::lui(19, 0xabcde)); // 0xabcde000
+    let at = p.here();
+    p.i(isa::auipc(20, 1)); // at + 0x1000
+    p.exit_pass();
+    let (run, _) = run_pass(&p);
+    let x = run.hart.x;
+    assert_eq!(
+        [x[11], x[12], x[13], x[7], x[9], x[14], x[15], x[16], x[17], x[19], x[20]],
+        [
+            0x8000_0000,
+            1,
+            1,
+            0x7fff_fffe,
+            0x7ff,
+            1,
+            0x10,
+            8,
+            0xffff_fff8,
+            0xabcd_e000,
+            at + 0x1000
+        ]
+    );
+}
+
+#[test]
+fn loads_and_stores() {
+    let mut p = Prog::new();
+    p.li(S0, OUT).li(A0, 0x8899_aabb);
+    p.i(isa::sw(A0, S0, 0));
+    p.i(isa::sb(A0, S0, 5)); // byte 5 = 0xbb
+    p.i(isa::sh(A0, S0, 10)); // bytes 10..12 = 0xaabb
+    p.i(isa::lb(A1, S0, 0)); // 0xffff_ffbb
+    p.i(isa::lbu(A2, S0, 1)); // 0xaa
+    p.i(isa::lh(A3, S0, 2)); // 0xffff_8899
+    p.i(isa::lhu(T2, S0, 2)); // 0x8899
+    p.i(isa::lw(S1, S0, 4)); // 0x0000_bb00
+    p.i(isa::lw(14, S0, 8)); // 0xaabb_0000
+    p.i(isa::lb(15, S0, 3)); // 0xffff_ff88
+    p.exit_pass();
+    let (run, ls) = run_pass(&p);
+    let x = run.hart.x;
+    assert_eq!(
+        [x[11], x[12], x[13], x[7], x[9], x[14], x[15]],
+        [
+            0xffff_ffbb,
+            0xaa,
+            0xffff_8899,
+            0x8899,
+            0xbb00,
+            0xaabb_0000,
+            0xffff_ff88
+        ]
+    );
+    assert_eq!(ls.model_word(OUT + 4), Some(0xbb00));
+}
+
+#[test]
+fn branches_and_jumps() {
+    // Each taken branch skips an `addi a2, a2, 1`; each fall-through executes one.
+    let mut p = Prog::new();
+    p.li(A0, 0xffff_fffe).li(A1, 1);
+    let cases: [(Branch, bool); 6] = [
+        (isa::beq, false),
+        (isa::bne, true),
+        (isa::blt, true),
+        (isa::bge, false),
+        (isa::bltu, false),
+        (isa::bgeu, true),
+    ];
+    for (br, _) in cases {
+        p.i(br(A0, A1, 8)).i(isa::addi(A2, A2, 1));
+    }
+    let link_at = p.here();
+    p.i(isa::jal(RA, 8)).i(isa::addi(A3, A3, 1)); // skipped
+    p.i(isa::auipc(T2, 0)).i(isa::jalr(S1, T2, 13)); // target auipc + 12 (bit 0 cleared)
+    p.i(isa::addi(A3, A3, 1)); // skipped
+    p.i(isa::beq(0, 0, -0)); // replaced below
+    let last = p.words.len() - 1;
+    p.words[last] = isa::addi(A3, A3, 0x10);
+    p.exit_pass();
+    let (run, _) = run_pass(&p);
+    let not_taken = cases.iter().filter(|c| !c.1).count() as u32;
+    assert_eq!(run.hart.x[A2 as usize], not_taken);
+    assert_eq!(run.hart.x[A3 as usize], 0x10);
+    assert_eq!(run.hart.x[RA as usize], link_at + 4);
+    assert_eq!(run.hart.x[S1 as usize], link_at + 16);
+}
+
+/// Installs a handler that records mcause, mepc and mtval to OUT.. and returns past the
+/// trapping instruction; returns the program with `mtvec` set.
+fn with_trap_recorder() -> Prog {
+    let mut p = Prog::new();
+    p.li(S0, OUT);
+    let jump = p.hole(1);
+    let handler = p.here();
+    p.i(isa::csrr(T2, csr::MCAUSE)).i(isa::sw(T2, S0, 0));
+    p.i(isa::csrr(T2, csr::MEPC)).i(isa::sw(T2, S0, 4));
+    p.i(isa::csrr(T2, csr::MTVAL)).i(isa::sw(T2, S0, 8));
+    p.i(isa::csrr(T2, csr::MSTATUS)).i(isa::sw(T2, S0, 12));
+    p.i(isa::csrr(T2, csr::MEPC))
+        .i(isa::addi(T2, T2, 4))
+        .i(isa::csrrw(0, csr::MEPC, T2));
+    p.i(isa::MRET);
+    let main = p.here();
+    p.words[jump] = isa::jal(0, (main - p.addr_of(jump)) as i32);
+    p.li(T2, handler).i(isa::csrrw(0, csr::MTVEC, T2));
+    p
+}
+
+fn expect_trap(body: &[u32], want_cause: u32, want_tval: Option<u32>) {
+    let mut p = with_trap_recorder();
+    p.words.extend(&body[..body.len() - 1]);
+    let epc = p.here();
+    p.i(body[body.len() - 1]);
+    p.i(isa::addi(A3, 0, 0x55)); // runs after the handler returns
+    p.exit_pass();
+    let (run, ls) = run_pass(&p);
+    assert_eq!(ls.model_word(OUT), Some(want_cause), "mcause");
+    assert_eq!(ls.model_word(OUT + 4), Some(epc), "mepc");
+    if let Some(t) = want_tval {
+        assert_eq!(ls.model_word(OUT + 8), Some(t), "mtval");
+    }
+    assert_eq!(
+        ls.model_word(OUT + 12),
+        Some(0x1800),
+        "mstatus in the handler: MPP=M, MIE=0"
+    );
+    assert_eq!(run.hart.x[A3 as usize], 0x55);
+}
+
+#[test]
+fn exceptions() {
+    expect_trap(&[isa::ECALL], cause::ECALL_M, Some(0));
+    let mut body = vec![isa::EBREAK];
+    expect_trap(&body, cause::BREAKPOINT, None);
+    for bad in [
+        0xffff_ffff,
+        0x0000_0000,
+        0x0000_3003,
+        0x0200_1013,
+        0x4000_1033,
+        0x0000_007f,
+        0x3020_00f3,
+        0x0000_4073,
+        0x0000_100f,
+        0x0800_302f,
+        0x1010_a02f,
+        0x2800_202f,
+    ] {
+        expect_trap(&[bad], cause::ILLEGAL_INSTRUCTION, Some(bad));
+    }
+    // Writing a read-only CSR and touching an unimplemented one.
+    expect_trap(
+        &[isa::csrrw(A0, csr::CYCLE, A1)],
+        cause::ILLEGAL_INSTRUCTION,
+        None,
+    );
+    expect_trap(&[isa::csrr(A0, 0x7c0)], cause::ILLEGAL_INSTRUCTION, None);
+    body = isa::li(A0, OUT + 1).to_vec();
+    body.push(isa::lw(A1, A0, 0));
+    expect_trap(&body, cause::MISALIGNED_LOAD, Some(OUT + 1));
+    body = isa::li(A0, OUT + 3).to_vec();
+    body.push(isa::sh(A1, A0, 0));
+    expect_trap(&body, cause::MISALIGNED_STORE, Some(OUT + 3));
+    body = isa::li(A0, OUT + 2).to_vec();
+    body.push(isa::amo_w(isa::amo::ADD, A1, A0, A1));
+    expect_trap(&body, cause::MISALIGNED_STORE, Some(OUT + 2));
+    // jal +6 lands on a half-word boundary.
+    let p = with_trap_recorder();
+    let here = p.here();
+    expect_trap(&[isa::jal(RA, 6)], cause::MISALIGNED_FETCH, Some(here + 6));
+}
+
+#[test]
+fn csrs_and_counters() {
+    let mut p = Prog::new();
+    p.li(A0, 0x1234_5678);
+    p.i(isa::csrrw(0, csr::MSCRATCH, A0));
+    p.i(isa::csrrsi(A1, csr::MSCRATCH, 0x3)); // a1 = old, scratch |= 3
+    p.li(T2, 0xff);
+    p.i(isa::csrrc(A2, csr::MSCRATCH, T2)); // a2 = 0x1234567b, scratch = 0x12345600
+    p.i(isa::csrr(A3, csr::MSCRATCH));
+    p.i(isa::csrr(S1, csr::MISA));
+    p.i(isa::csrr(14, csr::MHARTID));
+    p.i(isa::csrr(15, csr::MINSTRET)); // instructions before this one
+    p.i(isa::csrr(16, csr::MCYCLE));
+    p.i(isa::csrr(17, csr::MCYCLE));
+    p.li(T2, 0xffff_fff0).i(isa::csrrw(0, csr::MINSTRET, T2));
+    p.i(isa::csrr(19, csr::MINSTRET)); // 0xffff_fff0
+    p.i(isa::csrr(20, csr::MINSTRETH)); // 0
+    p.li(T2, 0xffff_ffff).i(isa::csrrw(0, csr::MTVEC, T2));
+    p.i(isa::csrr(21, csr::MTVEC)); // bit 1 reads zero
+    p.i(isa::csrrw(0, csr::MIE, T2)).i(isa::csrr(22, csr::MIE));
+    p.exit_pass();
+    let (run, _) = run_pass(&p);
+    let x = run.hart.x;
+    assert_eq!(
+        [x[11], x[12], x[13]],
+        [0x1234_5678, 0x1234_567b, 0x1234_5600]
+    );
+    assert_eq!(x[9], 0x4000_1101);
+    assert_eq!(x[14], 0);
+    assert_eq!(x[15], 10);
+    assert_eq!(x[17].wrapping_sub(x[16]), 1, "mcycle counts every cycle");
+    assert_eq!([x[19], x[20]], [0xffff_fff0, 0]);
+    assert_eq!(x[21], 0xffff_fffd);
+    assert_eq!(x[22], 0x888);
+}
+
+#[test]
+fn atomics() {
+    use isa::amo;
+    // (op, memory before, rs2, memory after)
+    let cases = [
+        (amo::SWAP, 5, 9, 9),
+        (amo::ADD, 5, 9, 14),
+        (amo::XOR, 0xf0, 0xff, 0x0f),
+        (amo::AND, 0xf0, 0x3c, 0x30),
+        (amo::OR, 0xf0, 0x0f, 0xff),
+        (amo::MIN, 0xffff_fffe, 1, 0xffff_fffe),
+        (amo::MAX, 0xffff_fffe, 1, 1),
+        (amo::MINU, 0xffff_fffe, 1, 1),
+        (amo::MAXU, 0xffff_fffe, 1, 0xffff_fffe),
+    ];
+    let mut p = Prog::new();
+    p.li(S0, OUT);
+    for (k, (op, before, rs2, _)) in cases.iter().enumerate() {
+        p.li(A0, *before).li(A1, *rs2).i(isa::sw(A0, S0, 0));
+        p.i(isa::amo_w(*op, A2, S0, A1))
+            .i(isa::sw(A2, S0, 64 + 4 * k as i32));
+        p.i(isa::lw(A3, S0, 0))
+            .i(isa::sw(A3, S0, 128 + 4 * k as i32));
+    }
+    // LR/SC: success, then a failing SC without reservation, then a failing SC on another
+    // address after LR.
+    p.li(A0, 77).i(isa::sw(A0, S0, 0));
+    p.i(isa::lr_w(A1, S0))
+        .i(isa::addi(A1, A1, 1))
+        .i(isa::sc_w(A2, S0, A1)); // a2 = 0
+    p.i(isa::sc_w(A3, S0, A1)); // a3 = 1
+    p.i(isa::addi(S1, S0, 4))
+        .i(isa::lr_w(T2, S0))
+        .i(isa::sc_w(S2, S1, A1)); // s2 = 1
+    p.i(isa::lw(14, S0, 0));
+    p.exit_pass();
+    let (run, ls) = run_pass(&p);
+    for (k, (_, before, _, after)) in cases.iter().enumerate() {
+        assert_eq!(
+            ls.model_word(OUT + 64 + 4 * k as u32),
+            Some(*before),
+            "old value {k}"
+        );
+        assert_eq!(
+            ls.model_word(OUT + 128 + 4 * k as u32),
+            Some(*after),
+            "new value {k}"
+        );
+    }
+    let x = run.hart.x;
+    assert_eq!([x[12], x[13], x[18], x[14]], [0, 1, 1, 78]);
+}
+
+/// Program that enables one interrupt source, waits in WFI and records the cause.
+fn interrupt_program(
+    setup: &dyn Fn(&mut Prog),
+    mie_bits: u32,
+    ack: &dyn Fn(&mut Prog),
+    vectored: bool,
+) -> Prog {
+    let mut p = Prog::new();
+    p.li(S0, OUT);
+    let jump = p.hole(1);
+    // Vector table (used when vectored): 12 slots each jumping to the common handler.
+    let table = p.here();
+    let slots = p.hole(12);
+    let handler = p.here();
+    for k in 0..12 {
+        p.words[slots + k] = isa::jal(0, (handler - p.addr_of(slots + k)) as i32);
+    }
+    p.i(isa::csrr(T2, csr::MCAUSE)).i(isa::sw(T2, S0, 0));
+    p.i(isa::csrr(T2, csr::MEPC)).i(isa::sw(T2, S0, 4));
+    p.i(isa::addi(A3, A3, 1));
+    ack(&mut p);
+    p.i(isa::MRET);
+    let main = p.here();
+    p.words[jump] = isa::jal(0, (main - p.addr_of(jump)) as i32);
+    p.li(T2, table | u32::from(vectored))
+        .i(isa::csrrw(0, csr::MTVEC, T2));
+    p.li(T2, mie_bits).i(isa::csrrw(0, csr::MIE, T2));
+    setup(&mut p);
+    p.i(isa::csrrsi(0, csr::MSTATUS, 8));
+    let wfi = p.here();
+    p.i(isa::WFI);
+    p.li(T2, wfi + 4).i(isa::sw(T2, S0, 8));
+    p.exit_pass();
+    p
+}
+
+fn check_interrupt(p: &Prog, stimuli: &[(u64, Stimulus)], want: u32) {
+    let (run, ls) = run_with(p, stimuli);
+    assert_eq!(ls.model_word(OUT), Some(want), "mcause");
+    let wfi_next = ls.model_word(OUT + 8).unwrap();
+    assert_eq!(
+        ls.model_word(OUT + 4),
+        Some(wfi_next),
+        "mepc is the instruction after WFI"
+    );
+    assert_eq!(run.hart.x[A3 as usize], 1, "handler ran once");
+}
+
+#[test]
+fn timer_interrupt() {
+    let setup = |p: &mut Prog| {
+        p.li(A0, map::CLINT + 0x4000).li(A1, 300);
+        p.i(isa::sw(0, A0, 4)).i(isa::sw(A1, A0, 0));
+    };
+    let ack = |p: &mut Prog| {
+        p.li(A0, map::CLINT + 0x4000)
+            .li(A1, 0xffff_ffff)
+            .i(isa::sw(A1, A0, 4));
+    };
+    for vectored in [false, true] {
+        let p = interrupt_program(&setup, 1 << 7, &ack, vectored);
+        check_interrupt(&p, &[], cause::M_TIMER);
+    }
+}
+
+#[test]
+fn software_interrupt() {
+    let setup = |p: &mut Prog| {
+        p.li(A0, map::CLINT).li(A1, 1).i(isa::sw(A1, A0, 0));
+    };
+    let ack = |p: &mut Prog| {
+        p.li(A0, map::CLINT).i(isa::sw(0, A0, 0));
+    };
+    let p = interrupt_program(&setup, 1 << 3, &ack, true);
+    // The interrupt arrives before WFI, on the instruction after MIE is set.
+    let (_, ls) = run_with(&p, &[]);
+    assert_eq!(ls.model_word(OUT), Some(cause::M_SOFTWARE));
+}
+
+#[test]
+fn external_interrupt() {
+    let ack = |p: &mut Prog| {
+        p.i(isa::csrrw(0, csr::MIE, 0));
+    };
+    let p = interrupt_program(&|_| {}, 1 << 11, &ack, false);
+    // Raise the line well after the core went to sleep in WFI.
+    check_interrupt(&p, &[(400, Stimulus::ExternalIrq(true))], cause::M_EXTERNAL);
+}
+
+#[test]
+fn external_beats_software_beats_timer() {
+    let setup = |p: &mut Prog| {
+        p.li(A0, map::CLINT).li(A1, 1).i(isa::sw(A1, A0, 0));
+        p.li(A0, map::CLINT + 0x4000)
+            .i(isa::sw(0, A0, 4))
+            .i(isa::sw(0, A0, 0));
+    };
+    let ack = |p: &mut Prog| {
+        p.i(isa::csrrw(0, csr::MIE, 0));
+    };
+    let all = (1 << 3) | (1 << 7) | (1 << 11);
+    let p = interrupt_program(&setup, all, &ack, true);
+    let (_, ls) = run_with(&p, &[(0, Stimulus::ExternalIrq(true))]);
+    assert_eq!(ls.model_word(OUT), Some(cause::M_EXTERNAL));
+    let p = interrupt_program(&setup, all & !(1 << 11), &ack, true);
+    let (_, ls) = run_with(&p, &[(0, Stimulus::ExternalIrq(true))]);
+    assert_eq!(ls.model_word(OUT), Some(cause::M_SOFTWARE));
+}
