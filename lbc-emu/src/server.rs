@@ -19,6 +19,9 @@ use crate::lbc::{Lbc, LogEntry};
 
 /// Longest the loop sleeps between polls.
 pub const POLL_INTERVAL: Duration = Duration::from_millis(1);
+/// Most input taken from the client in one poll, bytes (the rest is read on the next poll).
+/// A 115200 baud UART delivers about 12 bytes per millisecond; this is far above that.
+pub const MAX_INPUT_PER_POLL: usize = 64 * 1024;
 /// Output held back for a slow client before it is discarded, bytes.
 pub const MAX_PENDING_OUTPUT: usize = 64 * 1024;
 
@@ -236,21 +239,7 @@ impl Server {
             rx.clear();
             let mut lost = false;
             if let Some(c) = client.as_mut() {
-                loop {
-                    match c.read(&mut inbuf) {
-                        Ok(0) => {
-                            lost = true;
-                            break;
-                        }
-                        Ok(n) => rx.extend_from_slice(&inbuf[..n]),
-                        Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
-                        Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                        Err(_) => {
-                            lost = true;
-                            break;
-                        }
-                    }
-                }
+                lost = read_available(c, &mut inbuf, &mut rx, MAX_INPUT_PER_POLL);
             }
             lbc.push_rx(now, &rx);
             lbc.step_until(now);
@@ -281,6 +270,22 @@ impl Server {
         }
         Ok(())
     }
+}
+
+/// Reads what `c` has ready into `rx`, at most about `limit` bytes, so that a client that
+/// sends faster than the loop reads cannot keep it reading forever. Returns `true` when the
+/// connection ended or failed.
+fn read_available<R: Read>(c: &mut R, buf: &mut [u8], rx: &mut Vec<u8>, limit: usize) -> bool {
+    while rx.len() < limit {
+        match c.read(buf) {
+            Ok(0) => return true,
+            Ok(n) => rx.extend_from_slice(&buf[..n]),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => return false,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => return true,
+        }
+    }
+    false
 }
 
 fn write_some(c: &mut Conn, buf: &[u8]) -> io::Result<usize> {
@@ -364,6 +369,35 @@ mod tests {
             let tcp = ListenAddr::Tcp(SocketAddr::new(ip, port));
             proptest::prop_assert_eq!(tcp.to_string().parse::<ListenAddr>(), Ok(tcp));
         }
+    }
+
+    #[test]
+    fn a_client_that_never_stops_sending_cannot_stall_the_loop() {
+        // io::repeat never runs dry and never blocks, like a peer flooding the socket.
+        let mut flood = io::repeat(0xE8);
+        let mut buf = [0u8; 4096];
+        let mut rx = Vec::new();
+        assert!(!read_available(&mut flood, &mut buf, &mut rx, 10_000));
+        assert!((10_000..10_000 + buf.len()).contains(&rx.len()));
+    }
+
+    #[test]
+    fn end_of_stream_and_would_block_are_told_apart() {
+        let mut buf = [0u8; 8];
+        let mut rx = Vec::new();
+        let mut closed: &[u8] = &[1, 2, 3];
+        assert!(read_available(&mut closed, &mut buf, &mut rx, 1024));
+        assert_eq!(rx, [1, 2, 3]);
+
+        struct Idle;
+        impl Read for Idle {
+            fn read(&mut self, _: &mut [u8]) -> io::Result<usize> {
+                Err(io::ErrorKind::WouldBlock.into())
+            }
+        }
+        rx.clear();
+        assert!(!read_available(&mut Idle, &mut buf, &mut rx, 1024));
+        assert!(rx.is_empty());
     }
 
     #[test]

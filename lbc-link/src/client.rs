@@ -189,6 +189,12 @@ struct InFlight {
     retries: u8,
 }
 
+/// Counts one more event; the counters wrap like the deframer's, since the LBC (or line noise)
+/// decides how often they move.
+fn bump(counter: &mut u32) {
+    *counter = counter.wrapping_add(1);
+}
+
 /// The UBC's side of the link.
 #[derive(Debug)]
 pub struct Client {
@@ -309,7 +315,7 @@ impl Client {
             match parsed {
                 Ok(Ok(msg)) => self.handle(now, msg, &mut on_event),
                 Ok(Err(e)) => {
-                    self.stats.decode_errors += 1;
+                    bump(&mut self.stats.decode_errors);
                     on_event(Event::Malformed(e));
                 }
                 Err(e) => on_event(Event::Link(e)),
@@ -317,7 +323,7 @@ impl Client {
         }
         if let Some(f) = self.in_flight {
             if now >= f.deadline {
-                self.stats.timeouts += 1;
+                bump(&mut self.stats.timeouts);
                 self.retry_or_fail(now, Failure::TimedOut, &mut on_event);
             }
         }
@@ -349,7 +355,7 @@ impl Client {
         // A command always fits: the longest is 7 bytes.
         self.tx_len = f.command.emit(&mut self.tx).unwrap_or(0);
         self.tx_pos = 0;
-        self.stats.sent += 1;
+        bump(&mut self.stats.sent);
     }
 
     fn retry_or_fail<F: FnMut(Event)>(&mut self, now: Instant, failure: Failure, on_event: &mut F) {
@@ -358,7 +364,7 @@ impl Client {
         };
         if f.retries < self.config.max_retries {
             f.retries += 1;
-            self.stats.retries += 1;
+            bump(&mut self.stats.retries);
             self.transmit_in_flight(now);
         } else {
             let failure = match failure {
@@ -377,7 +383,7 @@ impl Client {
         self.tx_pos = self.tx_len;
         let event = match result {
             Ok(reply) => {
-                self.stats.acked += 1;
+                bump(&mut self.stats.acked);
                 Event::Done {
                     token: f.token,
                     command: f.command,
@@ -394,7 +400,7 @@ impl Client {
     }
 
     fn unexpected<F: FnMut(Event)>(&mut self, header: u8, on_event: &mut F) {
-        self.stats.unexpected += 1;
+        bump(&mut self.stats.unexpected);
         on_event(Event::Unexpected { header });
     }
 
@@ -402,7 +408,7 @@ impl Client {
         let in_flight = self.in_flight;
         match msg {
             LbcMessage::Stream(data) => {
-                self.stats.stream_frames += 1;
+                bump(&mut self.stats.stream_frames);
                 let sample = match self.stream_format {
                     Some(format) => data.decode(format),
                     None => Err(StreamError::UnknownFormat),
@@ -410,7 +416,7 @@ impl Client {
                 on_event(Event::Stream(sample));
             }
             LbcMessage::ChecksumError => {
-                self.stats.cser += 1;
+                bump(&mut self.stats.cser);
                 if in_flight.is_some() {
                     self.retry_or_fail(now, Failure::ChecksumErrors, on_event);
                 } else {
@@ -418,7 +424,7 @@ impl Client {
                 }
             }
             LbcMessage::UnknownCommand(echo) => {
-                self.stats.unkcmd += 1;
+                bump(&mut self.stats.unkcmd);
                 if in_flight.is_some() {
                     self.finish(Err(Failure::UnknownCommand(echo)), on_event);
                 } else {
@@ -427,7 +433,7 @@ impl Client {
             }
             LbcMessage::Error(kind) => match in_flight {
                 Some(f) if f.command.kind() == kind => {
-                    self.stats.errors += 1;
+                    bump(&mut self.stats.errors);
                     self.finish(Err(Failure::Rejected), on_event);
                 }
                 _ => self.unexpected(kind.error_header(), on_event),

@@ -93,18 +93,27 @@ pub fn parse_int(text: &str) -> Result<i64, InputError> {
     };
     let (negative, body) = match text.strip_prefix('-') {
         Some(rest) => (true, rest),
-        None => (false, text),
+        None => (false, text.strip_prefix('+').unwrap_or(text)),
     };
     let body = body.replace('_', "");
-    let value = if let Some(h) = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X")) {
-        i64::from_str_radix(h, 16)
-    } else if let Some(b) = body.strip_prefix("0b").or_else(|| body.strip_prefix("0B")) {
-        i64::from_str_radix(b, 2)
-    } else {
-        body.parse::<i64>()
+    let (digits, radix) =
+        if let Some(h) = body.strip_prefix("0x").or_else(|| body.strip_prefix("0X")) {
+            (h, 16)
+        } else if let Some(b) = body.strip_prefix("0b").or_else(|| body.strip_prefix("0B")) {
+            (b, 2)
+        } else {
+            (body.as_str(), 10)
+        };
+    // One sign at most, in front: the integer parser would accept another one here.
+    if digits.starts_with(['+', '-']) {
+        return Err(err());
     }
-    .map_err(|_| err())?;
-    Ok(if negative { -value } else { value })
+    let value = i64::from_str_radix(digits, radix).map_err(|_| err())?;
+    if negative {
+        value.checked_neg().ok_or_else(err)
+    } else {
+        Ok(value)
+    }
 }
 
 /// Bytes as lower-case hex separated by spaces.
@@ -155,5 +164,21 @@ mod tests {
         assert_eq!(parse_int("0x35"), Ok(0x35));
         assert_eq!(parse_int("0b101"), Ok(5));
         assert!(parse_int("x1").is_err());
+        assert!(parse_int("-").is_err());
+    }
+
+    #[test]
+    fn a_second_sign_is_refused_and_cannot_overflow() {
+        // These used to parse the body as i64::MIN and then negate it.
+        for text in ["--9223372036854775808", "-0x-8000000000000000", "-0b-1"] {
+            assert_eq!(
+                parse_int(text),
+                Err(InputError::NotANumber { text: text.into() })
+            );
+        }
+        assert!(parse_int("--5").is_err());
+        assert!(parse_int("0x-5").is_err());
+        assert_eq!(parse_int("+5"), Ok(5));
+        assert_eq!(parse_int("-9223372036854775807"), Ok(-i64::MAX));
     }
 }

@@ -711,6 +711,8 @@ impl Lbc {
         }
     }
 
+    /// Re-initialises the firmware state from the EEPROM (power-up, reset, INIT). The adjusted
+    /// yaw starts at the heading known now: a fresh external fix, else the vehicle model's.
     fn boot_firmware(&mut self) {
         self.fw = Firmware::boot(&self.image, self.now_us, &self.vehicle);
         if let Some(e) = self.fresh_external() {
@@ -840,6 +842,30 @@ mod tests {
         let mut bad = img;
         bad.set(reg::SO, (-501i16) as u16);
         assert_eq!(params_from_image(&bad), None);
+    }
+
+    #[test]
+    fn replies_dropped_by_a_full_uart_are_not_logged_as_sent() {
+        let cfg = LbcConfig {
+            log: true,
+            ..LbcConfig::default()
+        };
+        let mut lbc = Lbc::with_memory_eeprom(cfg, 1);
+        let mut buf = [0u8; 8];
+        let n = Command::ReadId.emit(&mut buf).unwrap();
+        // 2000 replies of 4 bytes do not fit the 4096-byte queue in one tick.
+        let burst: Vec<u8> = buf[..n].repeat(2000);
+        lbc.push_rx(0, &burst);
+        lbc.step_until(2_000);
+        let sent = lbc
+            .take_log()
+            .iter()
+            .filter(|e| matches!(e.event, LogEvent::Sent(_)))
+            .count() as u64;
+        let stats = lbc.stats();
+        assert_eq!(stats.replies, 2000);
+        assert!(stats.tx_overflow > 0);
+        assert_eq!(sent + stats.tx_overflow, stats.replies);
     }
 
     #[test]

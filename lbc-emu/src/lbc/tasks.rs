@@ -70,8 +70,8 @@ impl Lbc {
         }
     }
 
-    /// Re-initialises the firmware state from the EEPROM (power-up, reset, INIT). The adjusted
-    /// yaw starts at the heading known now: a fresh external fix, else the vehicle model's.
+    /// Angular rate, rad/s, of a gyro reading (counts above the reference), using the zero-rate
+    /// level (in 1/16 counts) and sensitivity (uV per deg/s) in calibration registers.
     pub(super) fn gyro_rate_rad_s(&self, raw_counts: f64, offset_reg: u8, gain_reg: u8) -> f64 {
         let offset = f64::from(self.calibration_register(offset_reg).unwrap_or(0) as i16) / 16.0;
         let gain_uv = f64::from(self.calibration_register(gain_reg).unwrap_or(1).max(1));
@@ -309,8 +309,9 @@ impl Lbc {
                 }
             }
             let ready = self.now_us + self.faults.delay_us();
-            self.uart.push_message(ready, &bytes);
-            if !matches!(msg, LbcMessage::Stream(_)) {
+            // A message the UART queue cannot take is dropped whole and counted there.
+            let queued = self.uart.push_message(ready, &bytes);
+            if queued && !matches!(msg, LbcMessage::Stream(_)) {
                 self.log(LogEvent::Sent(msg));
             }
         }
