@@ -26,7 +26,7 @@ pub struct CarArgs {
     /// `tcp:127.0.0.1:PORT` or `serial:/dev/ttyUSB0[@115200]`.
     #[arg(long, value_name = "SPEC")]
     radio: String,
-    /// Car ID (1..=126); default: the only car heard within one second.
+    /// Car ID (1..=126); default: the only car heard within two seconds.
     #[arg(long)]
     car: Option<u8>,
     /// Testbed key, 32 hex digits (default: `ALMC_RADIO_KEY`, else the documented testbed

@@ -216,6 +216,10 @@ fn car_console_over_a_socket() {
         .unwrap();
     assert!(c > 0);
 
+    // A timeout beyond what the clock can represent is just a long wait.
+    let out = car.almc(&["--timeout-ms", "18446744073709551615", "status"], &state);
+    assert!(out.status.success(), "{out:?}");
+
     // Bad arguments: usage errors (exit 2), no panic.
     let out = car.almc(&["lbc", "move-xy", "700", "0"], &state);
     assert_eq!(out.status.code(), Some(2), "{out:?}");

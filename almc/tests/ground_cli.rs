@@ -173,9 +173,22 @@ fn raw_request_gets_its_reply_and_the_counter_only_grows() {
 fn wrong_key_is_rejected_by_the_car_and_reported() {
     let w = World::new("key", *b"some-other-key!!");
     let state = w.state.to_str().unwrap();
+    // The timeout lies well beyond the ~6.4 s retry run, so a loaded machine still sees NoReply.
     let o = almc(&[
-        "radio", "send", "--radio", &w.radio, "--car", "3", "--tag", "1", "--hex", "01", "--state",
+        "radio",
+        "send",
+        "--radio",
+        &w.radio,
+        "--car",
+        "3",
+        "--tag",
+        "1",
+        "--hex",
+        "01",
+        "--state",
         state,
+        "--timeout",
+        "20000",
     ]);
     assert_eq!(o.status.code(), Some(1), "{o:?}");
     let out = String::from_utf8_lossy(&o.stdout);

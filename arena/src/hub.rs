@@ -30,6 +30,8 @@ use std::time::{Duration, Instant};
 pub const OUT_BACKLOG: usize = 64 * 1024;
 /// Largest read from one endpoint per turn.
 const READ_CHUNK: usize = 1024;
+/// Longest a `tcp:` connection attempt may hold up the engine (the other nodes wait meanwhile).
+const TCP_CONNECT_TIMEOUT: Duration = Duration::from_millis(2);
 
 /// Where a node's byte stream comes from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -362,7 +364,7 @@ impl Port {
             }
             (None, EndpointSpec::TcpConnect(a)) => {
                 self.next_connect = now + reconnect;
-                TcpStream::connect_timeout(a, reconnect)
+                TcpStream::connect_timeout(a, TCP_CONNECT_TIMEOUT)
                     .ok()
                     .map(Stream::Tcp)
             }
@@ -759,8 +761,12 @@ fn run_car(
                 executed.push((inc.tag, inc.payload.to_vec(), inc.id.counter.is_some()));
             }
         }
-        let n = mac.transmit(&mut buf);
-        out.extend(&buf[..n]);
+        // A peer that stops reading leaves the bytes in the protocol's bounded queue (counted
+        // as `tx_queue_full` there) instead of growing this buffer without limit.
+        if out.len() < OUT_BACKLOG {
+            let n = mac.transmit(&mut buf);
+            out.extend(&buf[..n]);
+        }
         while !out.is_empty() {
             let (front, _) = out.as_slices();
             match stream.write(front) {

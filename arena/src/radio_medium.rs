@@ -586,7 +586,11 @@ mod tests {
             assert_eq!(m.read(b, t + period - 1).len(), 8);
         }
         assert_eq!(m.stats().packets_sent, 2_000);
-        assert!(m.air.len() < 16, "transmission table grew to {}", m.air.len());
+        assert!(
+            m.air.len() < 16,
+            "transmission table grew to {}",
+            m.air.len()
+        );
     }
 
     #[test]

@@ -215,7 +215,7 @@ impl Link {
         let mut out = std::vec::Vec::new();
         for chunk in bytes.split_inclusive(|b| *b == 0) {
             self.count += 1;
-            if self.drop_every != 0 && self.count % self.drop_every == 0 {
+            if self.drop_every != 0 && self.count.is_multiple_of(self.drop_every) {
                 continue;
             }
             out.extend_from_slice(chunk);
@@ -566,4 +566,105 @@ fn version_mismatch_counted() {
         a.stats().rx_checksum + a.stats().rx_cobs + a.stats().rx_too_short,
         1
     );
+}
+
+fn on_air(frame: &Frame) -> std::vec::Vec<u8> {
+    encode_frame(frame).unwrap().to_vec()
+}
+
+fn request_from(src: u8, dst: u8, seq: u16) -> std::vec::Vec<u8> {
+    on_air(&Frame::Request {
+        src: Address::Car(car(src)),
+        dst: Address::Car(car(dst)),
+        seq,
+        tag: 1,
+        payload: Payload::from_slice(&[seq as u8]).unwrap(),
+    })
+}
+
+fn state_from(src: u8, seq: u8) -> std::vec::Vec<u8> {
+    on_air(&Frame::State {
+        src: car(src),
+        seq,
+        state: CarState::default(),
+    })
+}
+
+fn requests_delivered(evs: &[Event]) -> std::vec::Vec<u16> {
+    evs.iter()
+        .filter_map(|e| match e {
+            Event::Request(inc) => Some(inc.id.seq),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A request the application could not take (event queue full) is not marked as seen: its
+/// retransmission delivers it.
+#[test]
+fn request_dropped_by_a_full_event_queue_is_delivered_on_retry() {
+    let mut c = CarMac::new(CarConfig::new(car(1)));
+    for s in 0..endpoint::EVENT_QUEUE as u8 {
+        c.push_rx(1_000, &state_from(3, s));
+    }
+    c.push_rx(2_000, &request_from(2, 1, 40));
+    assert_eq!(c.stats().event_overflow, 1);
+    let evs = events(&mut c);
+    assert_eq!(evs.len(), endpoint::EVENT_QUEUE);
+    assert!(requests_delivered(&evs).is_empty());
+    c.push_rx(3_000, &request_from(2, 1, 40));
+    assert_eq!(requests_delivered(&events(&mut c)), [40]);
+    assert_eq!(c.stats().duplicates, 0);
+}
+
+/// A full neighbour table of fresh entries does not track the newcomer, but its state still
+/// reaches the application; once an entry is stale it is replaced.
+#[test]
+fn full_neighbour_table_still_delivers_states() {
+    let mut c = CarMac::new(CarConfig::new(car(1)));
+    for id in 2..2 + NEIGHBOURS as u8 {
+        c.push_rx(1_000, &state_from(id, 0));
+    }
+    let _ = events(&mut c);
+    c.push_rx(2_000, &state_from(100, 0));
+    assert_eq!(c.stats().neighbour_table_full, 1);
+    assert!(matches!(
+        events(&mut c).as_slice(),
+        [Event::State { from, .. }] if *from == car(100)
+    ));
+    assert!(c
+        .neighbours()
+        .iter()
+        .all(|n| n.addr != Address::Car(car(100))));
+    // Everybody else went silent: the newcomer takes a stale entry.
+    let later = 1_000 + c.stale_after_us() + 1;
+    c.push_rx(later, &state_from(100, 1));
+    assert_eq!(c.stats().neighbour_table_full, 1);
+    assert!(c
+        .neighbours()
+        .iter()
+        .any(|n| n.addr == Address::Car(car(100))));
+}
+
+/// Sequence numbers older than the window are dropped; a peer silent for longer than
+/// `DEDUP_RESET_US` (a restart) starts a new window.
+#[test]
+fn too_old_requests_and_window_reset_after_silence() {
+    let mut c = CarMac::new(CarConfig::new(car(1)));
+    c.push_rx(1_000, &request_from(2, 1, 100));
+    let evs = events(&mut c);
+    assert_eq!(requests_delivered(&evs), [100]);
+    let Some(Event::Request(inc)) = evs.into_iter().next() else {
+        unreachable!()
+    };
+    c.reply(inc.id, 1, &[]).unwrap();
+    let old = 100 - neighbours::DEDUP_WINDOW;
+    c.push_rx(2_000, &request_from(2, 1, old));
+    assert!(events(&mut c).is_empty());
+    assert_eq!(c.stats().too_old, 1);
+    // The peer restarted and reuses an old number after a long silence.
+    let later = 2_000 + endpoint::DEDUP_RESET_US + 1;
+    c.push_rx(later, &request_from(2, 1, old));
+    assert_eq!(requests_delivered(&events(&mut c)), [old]);
+    assert_eq!(c.stats().too_old, 1);
 }

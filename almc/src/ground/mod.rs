@@ -312,6 +312,14 @@ impl Shared {
     }
 }
 
+/// Longest wait honoured; a longer timeout (e.g. `Duration::MAX` from a command line) would
+/// overflow `Instant`.
+const MAX_WAIT: Duration = Duration::from_secs(365 * 24 * 3600);
+
+fn deadline_after(start: Instant, timeout: Duration) -> Instant {
+    start + timeout.min(MAX_WAIT)
+}
+
 /// An open ground-station session. Dropping it stops the radio thread.
 pub struct GroundLink {
     shared: Arc<Shared>,
@@ -437,8 +445,8 @@ impl GroundLink {
 
     /// A stream of every protocol event from now on (states, heartbeats, replies, requests
     /// from cars, failures). Requests from cars have already been acknowledged with an empty
-    /// reply of the same tag when they arrive here. A subscriber that falls [`EVENT_BACKLOG`] events behind loses
-    /// the newest ones (counted in [`LinkStats::events_dropped`]).
+    /// reply of the same tag when they arrive here. A subscriber that falls [`EVENT_BACKLOG`]
+    /// events behind loses the newest ones (counted in [`LinkStats::events_dropped`]).
     pub fn subscribe(&self) -> Receiver<GroundEvent> {
         let (tx, rx) = mpsc::sync_channel(EVENT_BACKLOG);
         self.shared.lock().subscribers.push(tx);
@@ -465,12 +473,14 @@ impl GroundLink {
                     return Err(GroundError::Closed(c));
                 }
                 let counter = inner.gs.next_counter();
+                // The counter after u32::MAX would wrap to 0, which every car rejects as a
+                // replay: refuse instead, with or without a counter file.
+                let next = counter
+                    .checked_add(1)
+                    .ok_or(GroundError::Counter(CounterError::Exhausted))?;
                 if let Some(file) = &self.counter_file {
                     // Persist before the command can reach the radio: a crash never leads
                     // to a counter being sent twice.
-                    let next = counter
-                        .checked_add(1)
-                        .ok_or(GroundError::Counter(CounterError::Exhausted))?;
                     if inner.persisted != Some(next) {
                         file.store(next).map_err(GroundError::Counter)?;
                         inner.persisted = Some(next);
@@ -502,7 +512,8 @@ impl GroundLink {
     }
 
     /// Send an authenticated command to `car` and wait up to `timeout` for its reply. The
-    /// protocol retransmits for about 1.9 s before giving up ([`GroundError::NoReply`]).
+    /// command is retransmitted for about 6.2 s (10 attempts, 40 ms doubling to 1 s) before
+    /// the link gives up ([`GroundError::NoReply`]).
     pub fn request(
         &self,
         car: CarId,
@@ -511,7 +522,7 @@ impl GroundLink {
         timeout: Duration,
     ) -> Result<Reply, GroundError> {
         let started = Instant::now();
-        let deadline = started + timeout;
+        let deadline = deadline_after(started, timeout);
         let dst = Address::Car(car);
         let (counter, rx, h) = self.submit(dst, tag, payload, deadline, started)?;
         let wait = deadline.saturating_duration_since(Instant::now());
@@ -552,7 +563,7 @@ impl GroundLink {
         timeout: Duration,
     ) -> Result<BroadcastSent, GroundError> {
         let started = Instant::now();
-        let deadline = started + timeout;
+        let deadline = deadline_after(started, timeout);
         let dst = Address::Broadcast;
         let (counter, rx, h) = self.submit(dst, tag, payload, deadline, started)?;
         let wait = deadline.saturating_duration_since(Instant::now());
@@ -817,7 +828,13 @@ mod tests {
         let t = Instant::now();
         let r = link.request(CarId::new(1).unwrap(), 7, &[1], Duration::from_secs(10));
         assert!(
-            matches!(r, Err(GroundError::NoReply { attempts: USER_MAX_ATTEMPTS, .. })),
+            matches!(
+                r,
+                Err(GroundError::NoReply {
+                    attempts: USER_MAX_ATTEMPTS,
+                    ..
+                })
+            ),
             "{r:?}"
         );
         // The user's requests are retried for about 6.2 s before giving up.
@@ -878,6 +895,41 @@ mod tests {
         });
         assert_eq!(notice, Some((0x10, vec![1, 5, 0])));
         assert_eq!(link.stats().1.requests_acknowledged, 1);
+        drop(link);
+        let _ = std::fs::remove_file(&path);
+    }
+
+    #[test]
+    fn the_last_counter_is_refused_instead_of_wrapping() {
+        use std::os::unix::net::UnixListener;
+        let path = std::env::temp_dir().join(format!("almc-gl-{}-wrap.sock", std::process::id()));
+        let _ = std::fs::remove_file(&path);
+        let listener = UnixListener::bind(&path).unwrap();
+        let spec = format!("unix:{}", path.display());
+        // Without a counter file: the counter after u32::MAX would be 0, a replay to every car.
+        let link = GroundLink::open(&spec, Key::new(KEY), u32::MAX).unwrap();
+        let (_peer, _) = listener.accept().unwrap();
+        let r = link.broadcast(1, &[], Duration::from_millis(200));
+        assert!(
+            matches!(r, Err(GroundError::Counter(CounterError::Exhausted))),
+            "{r:?}"
+        );
+        // A timeout beyond what `Instant` can represent is a long wait, not a panic.
+        let r = link.request(CarId::new(1).unwrap(), 1, &[], Duration::MAX);
+        assert!(
+            matches!(r, Err(GroundError::Counter(CounterError::Exhausted))),
+            "{r:?}"
+        );
+        assert_eq!(link.next_counter(), u32::MAX, "nothing was sent");
+        drop(link);
+        // One below the limit still goes out.
+        let link = GroundLink::open(&spec, Key::new(KEY), u32::MAX - 1).unwrap();
+        let (_peer, _) = listener.accept().unwrap();
+        let r = link.broadcast(1, &[], Duration::from_secs(2));
+        assert!(
+            matches!(r, Ok(BroadcastSent { counter, .. }) if counter == u32::MAX - 1),
+            "{r:?}"
+        );
         drop(link);
         let _ = std::fs::remove_file(&path);
     }
