@@ -5,7 +5,10 @@ use std::{env, fs, path::PathBuf};
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
-    let boards: &[(&str, &str)] = &[("CARGO_FEATURE_QEMU_VIRT", "boards/qemu_virt/memory.x")];
+    let boards: &[(&str, &str)] = &[
+        ("CARGO_FEATURE_QEMU_VIRT", "boards/qemu_virt/memory.x"),
+        ("CARGO_FEATURE_SOFTCORE", "boards/softcore/memory.x"),
+    ];
     let target_arch = env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
     if target_arch != "riscv32" {
         return;

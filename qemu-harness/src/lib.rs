@@ -38,3 +38,12 @@ pub use log::{Level, LineDecoder, Log, LogFormat, LogLine, DEFAULT_LOG_CAPACITY}
 pub use qemu::Qemu;
 pub use spec::{SocketSpec, SocketSpecError, UartAttach};
 pub use uart::{Uart, DEFAULT_WRITE_TIMEOUT};
+
+/// `timeout` from now, or as far ahead as the clock goes: a caller's huge timeout (say
+/// `Duration::MAX` for "forever") must not overflow `Instant` and panic.
+pub(crate) fn deadline_after(timeout: std::time::Duration) -> std::time::Instant {
+    let now = std::time::Instant::now();
+    now.checked_add(timeout)
+        .or_else(|| now.checked_add(std::time::Duration::from_secs(100 * 365 * 24 * 3600)))
+        .unwrap_or(now)
+}

@@ -134,6 +134,9 @@ impl LogFormat {
     }
 }
 
+/// Longest plain-text log line kept whole; longer ones are split into pieces of this size.
+pub const MAX_TEXT_LINE: usize = 4096;
+
 /// Incremental bytes-to-lines conversion for one stream.
 pub struct LineDecoder<'t> {
     inner: Inner<'t>,
@@ -191,14 +194,24 @@ impl<'t> LineDecoder<'t> {
             }
             Inner::Text(pending) => {
                 pending.extend_from_slice(data);
-                while let Some(pos) = pending.iter().position(|&b| b == b'\n') {
-                    let line: Vec<u8> = pending.drain(..=pos).collect();
-                    let text = String::from_utf8_lossy(&line[..pos]);
+                loop {
+                    // A line longer than MAX_TEXT_LINE is cut there, so output that never
+                    // ends a line cannot grow the buffer without bound.
+                    let end = match pending.iter().position(|&b| b == b'\n') {
+                        Some(pos) if pos <= MAX_TEXT_LINE => pos + 1,
+                        _ if pending.len() > MAX_TEXT_LINE => MAX_TEXT_LINE,
+                        _ => break,
+                    };
+                    let line: Vec<u8> = pending.drain(..end).collect();
+                    let text = String::from_utf8_lossy(&line);
                     out.push(LogLine {
                         host_time: now,
                         level: None,
                         timestamp: None,
-                        message: text.trim_end_matches('\r').to_owned(),
+                        message: text
+                            .trim_end_matches('\n')
+                            .trim_end_matches('\r')
+                            .to_owned(),
                     });
                 }
             }
@@ -351,7 +364,7 @@ impl Log {
         mut pred: impl FnMut(&LogLine) -> bool,
         timeout: Duration,
     ) -> Result<(usize, LogLine), Error> {
-        let deadline = Instant::now() + timeout;
+        let deadline = crate::deadline_after(timeout);
         let mut next = from;
         let mut state = self.lock();
         loop {
@@ -489,6 +502,47 @@ mod tests {
         dec.push(b"ld\npartial", t, &mut out);
         let msgs: Vec<&str> = out.iter().map(|l| l.message.as_str()).collect();
         assert_eq!(msgs, ["hello", "world"]);
+    }
+
+    #[test]
+    fn endless_text_line_is_cut_not_buffered_forever() {
+        let format = LogFormat::Text;
+        let mut dec = LineDecoder::new(&format);
+        let mut out = Vec::new();
+        let t = Instant::now();
+        let chunk = [b'x'; 1000];
+        for _ in 0..10 {
+            dec.push(&chunk, t, &mut out);
+        }
+        let Inner::Text(pending) = &dec.inner else {
+            panic!("text decoder");
+        };
+        assert!(
+            pending.len() <= MAX_TEXT_LINE,
+            "{} bytes pending",
+            pending.len()
+        );
+        assert_eq!(out.len(), 10_000 / MAX_TEXT_LINE);
+        assert!(out.iter().all(|l| l.message.len() == MAX_TEXT_LINE));
+        // A line of exactly MAX_TEXT_LINE bytes plus its newline stays one line.
+        let mut dec = LineDecoder::new(&format);
+        out.clear();
+        let mut exact = vec![b'y'; MAX_TEXT_LINE];
+        exact.extend_from_slice(b"\nnext\n");
+        dec.push(&exact, t, &mut out);
+        let lens: Vec<usize> = out.iter().map(|l| l.message.len()).collect();
+        assert_eq!(lens, [MAX_TEXT_LINE, 4]);
+    }
+
+    #[test]
+    fn huge_timeouts_do_not_overflow() {
+        let log = Log::new();
+        log.close();
+        let err = log
+            .wait_for(|_| true, Duration::MAX)
+            .expect_err("closed and empty");
+        assert!(matches!(err, Error::LogClosed { seen: 0, .. }), "{err:?}");
+        assert!(crate::deadline_after(Duration::MAX) > Instant::now());
     }
 
     /// The stand-in ELF's table: index 1 = info "standin up timebase={=u32} Hz",

@@ -117,7 +117,7 @@ impl Qemu {
             qemu.threads.push(t);
         }
 
-        let deadline = Instant::now() + config.connect_timeout;
+        let deadline = crate::deadline_after(config.connect_timeout);
         // QEMU creates (and, with wait=on, blocks on) the sockets in command-line order.
         let console = qemu.connect(SEMIHOST_CHARDEV, deadline, config.connect_timeout)?;
         let t = qemu
@@ -250,7 +250,7 @@ impl Qemu {
     /// Waits up to `timeout` for QEMU to exit by itself and returns its status; on
     /// timeout QEMU keeps running (it is still killed on drop).
     pub fn wait_exit(&mut self, timeout: Duration) -> Result<ExitStatus, Error> {
-        let deadline = Instant::now() + timeout;
+        let deadline = crate::deadline_after(timeout);
         loop {
             if let Some(status) = self.try_wait()? {
                 return Ok(status);

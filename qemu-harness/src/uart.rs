@@ -66,7 +66,7 @@ impl Uart {
 
     /// Fills `buf` completely or fails once `timeout` has passed in total.
     pub fn read_exact_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> Result<(), Error> {
-        let deadline = Instant::now() + timeout;
+        let deadline = crate::deadline_after(timeout);
         let mut got = 0;
         while got < buf.len() {
             let now = Instant::now();

@@ -36,13 +36,6 @@ impl Mmio {
     pub const fn base(&self) -> usize {
         self.base
     }
-
-    /// An accessor for the registers `offset` bytes further on, within the same device.
-    pub const fn offset(&self, offset: usize) -> Self {
-        Self {
-            base: self.base + offset,
-        }
-    }
 }
 
 impl RegisterBus for Mmio {

@@ -271,11 +271,6 @@ impl<B: RegisterBus> Ns16550<B> {
         Self { bus }
     }
 
-    /// The register accessor.
-    pub fn bus(&self) -> &B {
-        &self.bus
-    }
-
     /// Sets the line to 8N1 at the configured rate, enables and clears the FIFOs, raises
     /// DTR/RTS/OUT2 and leaves every interrupt disabled.
     pub fn init(&self, config: &Config) -> Result<(), ConfigError> {
@@ -301,11 +296,11 @@ impl<B: RegisterBus> Ns16550<B> {
         mcr.set_rts(true);
         mcr.set_out2(true);
         self.bus.write8(reg::MCR, mcr.0);
-        // Clear stale line status and any byte that was waiting.
+        // Clear stale line status, and the holding register of a UART without FIFO (the FIFO
+        // reset above emptied the RX FIFO). No loop on `data_ready`: a device that always
+        // reports data (absent, or a line that never pauses) must not hang start-up.
         let _ = self.lsr();
-        while self.lsr().data_ready() {
-            let _ = self.bus.read8(reg::RBR);
-        }
+        let _ = self.bus.read8(reg::RBR);
         Ok(())
     }
 
@@ -625,6 +620,29 @@ mod tests {
         assert_eq!(s.mcr, 0x0B, "DTR, RTS, OUT2");
         assert_eq!(s.ier, 0);
         assert!(s.rx.is_empty());
+    }
+
+    /// A bus with nothing behind it: every read gives 0xFF (LSR says data ready forever).
+    struct Floating(core::cell::Cell<usize>);
+
+    impl RegisterBus for Floating {
+        fn read8(&self, _offset: usize) -> u8 {
+            self.0.set(self.0.get() + 1);
+            0xFF
+        }
+        fn write8(&self, _offset: usize, _value: u8) {}
+        fn read32(&self, _offset: usize) -> u32 {
+            u32::MAX
+        }
+        fn write32(&self, _offset: usize, _value: u32) {}
+    }
+
+    #[test]
+    fn init_returns_on_a_device_that_always_has_data() {
+        let bus = Floating(core::cell::Cell::new(0));
+        let uart = Ns16550::new(&bus);
+        assert_eq!(uart.init(&Config::default()), Ok(()));
+        assert!(bus.0.get() <= 4, "{} register reads", bus.0.get());
     }
 
     #[test]

@@ -204,7 +204,10 @@ pub fn run() -> Result<()> {
         &logs.join("lbc-emu.log"),
     )?;
     wait_for_path(&lbc_sock, Duration::from_secs(10))?;
-    println!("  almc lbc-emu --listen unix:{} --id {CAR} --log", lbc_sock.display());
+    println!(
+        "  almc lbc-emu --listen unix:{} --id {CAR} --log",
+        lbc_sock.display()
+    );
 
     stage("boot the firmware in QEMU");
     let qemu = Qemu::builder(&elf)
@@ -322,7 +325,9 @@ pub fn run() -> Result<()> {
     drop(hub);
     drop(emu);
     println!();
-    println!("demo: the car came up, answered every command over the radio and drove to both targets");
+    println!(
+        "demo: the car came up, answered every command over the radio and drove to both targets"
+    );
     for (i, (t, d)) in reached.iter().enumerate() {
         println!(
             "  point {}: {:.1} s, {:.0} mm from the target",

@@ -55,6 +55,12 @@ fn attach(connect: Option<SocketSpec>, listen: Option<PathBuf>) -> UartAttach {
     }
 }
 
+/// The instant `secs` seconds from now; `None` (no deadline) when that lies beyond what the
+/// clock can represent, so a huge `--timeout` cannot panic.
+fn deadline_in(secs: u64) -> Option<Instant> {
+    Instant::now().checked_add(Duration::from_secs(secs))
+}
+
 /// Runs `cargo xtask qemu`.
 pub fn run(args: QemuArgs) -> anyhow::Result<()> {
     crate::install::ensure_qemu()?;
@@ -75,9 +81,7 @@ pub fn run(args: QemuArgs) -> anyhow::Result<()> {
         .with_context(|| format!("starting QEMU with {}", elf.display()))?;
     eprintln!("qemu: pid {} booting {}", qemu.pid(), elf.display());
 
-    let deadline = args
-        .timeout
-        .map(|secs| Instant::now() + Duration::from_secs(secs));
+    let deadline = args.timeout.and_then(deadline_in);
     let mut next = 0;
     loop {
         // Checked before every line, so a flood of log lines cannot starve the timeout.
@@ -170,6 +174,13 @@ mod tests {
             UartAttach::Listen(SocketSpec::Unix("/tmp/radio.sock".into()))
         );
         assert_eq!((a.timeout, a.icount.as_deref()), (Some(5), Some("3")));
+    }
+
+    #[test]
+    fn huge_timeout_means_no_deadline_instead_of_a_panic() {
+        let cli = Cli::try_parse_from(["qemu", "--timeout", &u64::MAX.to_string()]).expect("valid");
+        assert_eq!(cli.args.timeout.and_then(deadline_in), None);
+        assert!(deadline_in(5).is_some_and(|d| d > Instant::now()));
     }
 
     #[test]

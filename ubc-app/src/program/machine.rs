@@ -935,11 +935,10 @@ impl Program {
                 }
             }
             Request::StreamFormat(bits) => {
-                if StreamFormat::new(bits | REQUIRED_STREAM).is_err() {
+                let Ok(fmt) = StreamFormat::new(bits | REQUIRED_STREAM) else {
                     return Some(Refusal::BadArgument);
-                }
-                self.cfg.extra_stream = bits;
-                let fmt = self.stream_format();
+                };
+                // A refused request (Busy) leaves the configured format as it was.
                 if self.phase == Phase::Running {
                     if !self.send(now, Command::UpdSf(fmt), Owner::StreamFormat(id)) {
                         return Some(Refusal::Busy);
@@ -952,6 +951,7 @@ impl Program {
                         &Reply::StreamFormat(fmt.bits()),
                     );
                 }
+                self.cfg.extra_stream = bits;
             }
             Request::ManeuverStart(points) => {
                 if self.phase != Phase::Running {

@@ -3,3 +3,5 @@
 
 #[cfg(feature = "qemu_virt")]
 pub mod qemu_virt;
+#[cfg(feature = "softcore")]
+pub mod softcore;

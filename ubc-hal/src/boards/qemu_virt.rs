@@ -209,8 +209,10 @@ fn open_radio() -> Result<(Uart, RadioInfo), RadioError> {
         .setup_io_device(PCI_SERIAL_ID.0, PCI_SERIAL_ID.1, 0, &mut io)
         .map_err(RadioError::Pci)?;
     let plic_source = irq::PCI_INTX_BASE + u32::from(device.pin.swizzle(device.bdf.device));
-    // SAFETY: the card's BAR0 was just placed at this address of the PCI I/O window and its
-    // I/O decoding enabled; it spans the 8 byte-wide 16550 registers.
+    // SAFETY: the card's BAR0 was just placed at this address of the PCI I/O window (device
+    // space, never RAM) and its I/O decoding enabled. The 8 byte-wide 16550 registers lie
+    // inside the mapped window even if the card decodes fewer: this is the window's first
+    // allocation, so a BAR of 4 bytes sits at `PCI_IO_FIRST`, far from the window's end.
     let uart = Ns16550::new(unsafe { Mmio::new(device.cpu_address) });
     let port = RADIO_PORT
         .open(uart, &Config::with_clock(PCI_SERIAL_CLOCK_HZ))
