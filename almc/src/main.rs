@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod car;
+mod experiment;
 mod ground;
 mod lbc;
 mod lbc_emu;
@@ -33,6 +34,9 @@ enum Group {
     Radio(radio::RadioCommand),
     /// Console of one car's UBC program over the radio: LBC commands, status, maneuvers.
     Car(car::CarArgs),
+    /// Experiments with QEMU cars in the simulated arena.
+    #[command(subcommand)]
+    Experiment(experiment::ExperimentCommand),
 }
 
 fn main() -> ExitCode {
@@ -42,5 +46,6 @@ fn main() -> ExitCode {
         Group::Cars(args) => radio::run_cars(args),
         Group::Radio(cmd) => radio::run(cmd),
         Group::Car(args) => car::run(&args),
+        Group::Experiment(cmd) => experiment::run(cmd),
     }
 }

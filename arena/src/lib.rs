@@ -5,6 +5,10 @@
 #![forbid(unsafe_code)]
 
 pub mod camera;
+pub mod experiment;
 pub mod hub;
+pub mod metrics;
+pub mod plot;
 pub mod radio_medium;
 pub mod radio_sim;
+pub mod world;
