@@ -2,7 +2,7 @@
 //! (`run`, on top of the library's `program`), or with the `echo-test` feature the UART echo
 //! test mode (`test_mode`) that the QEMU driver acceptance tests check.
 //!
-//! Built once per board, selected by a cargo feature (`qemu_virt`); `cargo xtask fw` builds it.
+//! Built once per board, selected by a cargo feature (`qemu_virt` or `softcore`); `cargo xtask fw` builds it.
 
 #![no_std]
 #![no_main]
@@ -16,7 +16,10 @@ mod test_mode;
 #[cfg(feature = "qemu_virt")]
 use ubc_hal::boards::qemu_virt as board;
 
-#[cfg(not(feature = "qemu_virt"))]
+#[cfg(feature = "softcore")]
+use ubc_hal::boards::softcore as board;
+
+#[cfg(not(any(feature = "qemu_virt", feature = "softcore")))]
 compile_error!("select a board with a cargo feature, e.g. `--features qemu_virt`");
 
 use core::sync::atomic::{AtomicBool, Ordering};
@@ -43,6 +46,7 @@ fn main() -> ! {
         board::NAME,
         board.clock.hz()
     );
+    #[cfg(feature = "qemu_virt")]
     match (&board.radio, &board.radio_info) {
         (Ok(_), Some(info)) => defmt::info!(
             "radio uart: pci-serial at {=usize:#x} (slot {=u8}, pin {}, PLIC source {=u32})",
@@ -53,6 +57,10 @@ fn main() -> ! {
         ),
         (Err(e), _) => defmt::warn!("radio uart unavailable: {}", e),
         _ => {}
+    }
+    #[cfg(feature = "softcore")]
+    if let Err(e) = &board.radio {
+        defmt::warn!("radio uart unavailable: {}", e);
     }
     #[cfg(feature = "echo-test")]
     {

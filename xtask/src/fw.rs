@@ -20,7 +20,7 @@ use object::{Object, ObjectSection, SectionKind};
 /// The firmware's target triple (RV32IMA, machine mode, no OS).
 pub const TARGET: &str = "riscv32ima-unknown-none-elf";
 /// Boards the firmware can be built for (cargo features of `ubc-app`).
-pub const BOARDS: &[&str] = &["qemu_virt"];
+pub const BOARDS: &[&str] = &["qemu_virt", "softcore"];
 /// Debian packages of the fallback toolchain.
 const DEBIAN_TOOLCHAIN: &[&str] = &["rustc-web", "cargo-web", "rust-web-src", "lld-16"];
 const DEBIAN_CARGO: &str = "/usr/bin/cargo";
@@ -182,7 +182,14 @@ pub fn clippy(board: &str) -> Result<String> {
     }
     let app = app_dir();
     let target_dir = app.join("target").join("clippy");
-    let hal_features = format!("{board},logger,rt");
+    // Each board has its own defmt transport: semihosting on QEMU, the simulation console on
+    // the soft core.
+    let logger = if board == "softcore" {
+        "console-logger"
+    } else {
+        "logger"
+    };
+    let hal_features = format!("{board},{logger},rt");
     let runs: [(PathBuf, Vec<&str>); 2] = [
         (app.clone(), vec!["--features", board]),
         (

@@ -92,21 +92,31 @@ pub fn run(args: TestArgs) -> Result<()> {
             install::ensure_qemu()?;
             let program = fw::build("qemu_virt", true)?;
             let echo = fw::build_features("qemu_virt", fw::BIN, &["echo-test"], true)?;
-            let note = format!("{} (+ echo-test)", program.display());
-            elfs = Some((program, echo));
+            let softcore = fw::build("softcore", true)?;
+            let note = format!("{} (+ echo-test, softcore)", program.display());
+            elfs = Some((program, echo, softcore));
             Ok(note)
         });
         if !args.no_lint {
-            record("clippy (firmware)", &mut || fw::clippy("qemu_virt"));
+            record("clippy (firmware)", &mut || {
+                let mut notes = Vec::new();
+                for board in fw::BOARDS {
+                    notes.push(fw::clippy(board)?);
+                }
+                Ok(notes.join("; "))
+            });
         }
     }
 
     record("host and QEMU tests", &mut || {
         let mut cmd = Command::new(cargo_bin());
+        // The whole workspace, including the soft core's test bench (not a default member).
         cmd.args(["test", "--workspace"]);
         match (&elfs, args.no_qemu) {
-            (Some((program, echo)), _) => {
-                cmd.env("UBC_FW_ELF", program).env("UBC_FW_ECHO_ELF", echo);
+            (Some((program, echo, softcore)), _) => {
+                cmd.env("UBC_FW_ELF", program)
+                    .env("UBC_FW_ECHO_ELF", echo)
+                    .env("VTB_FIRMWARE", softcore);
             }
             (None, true) => {
                 cmd.env("UBC_SKIP_QEMU", "1");
