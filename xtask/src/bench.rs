@@ -145,8 +145,9 @@ fn size() -> Result<String> {
     let elf = fw::build("qemu_virt", true)?;
     let s = fw::sizes(&elf)?;
     let buffers = buffer_objects(&elf)?;
-    let buffer_bytes: u64 = buffers.values().sum();
-    let static_ram = (s.data + s.bss).saturating_sub(buffer_bytes);
+    // Every static object counts, the UART rings too; only camera frame buffers would be
+    // left out (the frame grabber's window is outside the image).
+    let static_ram = s.data + s.bss;
     let mut md = String::from("## Firmware size (qemu_virt, release)\n\n");
     let _ = writeln!(md, "| section | bytes | goal | |");
     let _ = writeln!(md, "|---|---:|---:|---|");
@@ -162,14 +163,14 @@ fn size() -> Result<String> {
     let _ = writeln!(md, "| bss | {} ({}) | | |", s.bss, kib(s.bss));
     let _ = writeln!(
         md,
-        "| static RAM without buffers (data + bss - {buffer_bytes}) | {static_ram} ({}) | <= {} | {} |",
+        "| static RAM (data + bss) | {static_ram} ({}) | <= {} | {} |",
         kib(static_ram),
         kib(STATIC_RAM_GOAL),
         verdict(static_ram <= STATIC_RAM_GOAL)
     );
     let _ = writeln!(
         md,
-        "\nBuffers (static objects of {BUFFER_MIN} bytes or more, not counted above):\n"
+        "\nLarge static objects ({BUFFER_MIN} bytes or more), counted above:\n"
     );
     if buffers.is_empty() {
         let _ = writeln!(md, "- none");
