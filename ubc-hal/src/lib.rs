@@ -17,7 +17,10 @@ pub mod boards;
 pub mod clint;
 pub mod cpu;
 pub mod exit;
-#[cfg(all(feature = "logger", target_arch = "riscv32"))]
+#[cfg(all(
+    any(feature = "logger", feature = "console-logger"),
+    target_arch = "riscv32"
+))]
 mod logger;
 pub mod mmio;
 pub mod pci;

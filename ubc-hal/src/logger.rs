@@ -1,19 +1,23 @@
-//! defmt global logger over semihosting. Encoded frames leave byte by byte through
-//! `SYS_WRITEC`, which QEMU sends to the chardev named in
-//! `-semihosting-config enable=on,target=native,chardev=ID` (QEMU 7.2 sends `SYS_WRITE` on
-//! the `:tt` handle to its own stdout instead, whatever the chardev). `SYS_WRITE0` cannot
-//! carry the zero bytes that delimit defmt frames. A critical section covers each frame, so
-//! frames from interrupt handlers and the program never interleave.
+//! The defmt global logger. Encoded frames leave byte by byte through the board's transport:
+//! on `qemu_virt` (feature `logger`) semihosting `SYS_WRITEC`, which QEMU sends to the chardev
+//! named in `-semihosting-config enable=on,target=native,chardev=ID` (QEMU 7.2 sends `SYS_WRITE`
+//! on the `:tt` handle to its own stdout instead, whatever the chardev; `SYS_WRITE0` cannot carry
+//! the zero bytes that delimit defmt frames); on `softcore` (feature `console-logger`) the
+//! simulation-control console register. A critical section covers each frame, so frames from
+//! interrupt handlers and the program never interleave.
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicBool, Ordering};
-use semihosting::sys::arm_compat::sys_writec;
 
+#[cfg(feature = "logger")]
 fn emit(bytes: &[u8]) {
     for &b in bytes {
-        sys_writec(b);
+        semihosting::sys::arm_compat::sys_writec(b);
     }
 }
+
+#[cfg(all(feature = "console-logger", not(feature = "logger")))]
+use crate::boards::softcore::console_emit as emit;
 
 struct State {
     encoder: defmt::Encoder,
@@ -33,11 +37,11 @@ static STATE: Shared = Shared(UnsafeCell::new(State {
 }));
 
 #[defmt::global_logger]
-struct SemihostingLogger;
+struct Logger;
 
 // SAFETY: frames are serialised by the critical section taken in `acquire` and released in
 // `release`; `write`/`flush`/`release` are only called by defmt between those two.
-unsafe impl defmt::Logger for SemihostingLogger {
+unsafe impl defmt::Logger for Logger {
     fn acquire() {
         // SAFETY: paired with the `critical_section::release` in `release`.
         let restore = unsafe { critical_section::acquire() };

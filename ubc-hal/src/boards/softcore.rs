@@ -202,78 +202,16 @@ pub fn on_timer_interrupt() {
 #[cfg(all(feature = "console-logger", target_arch = "riscv32"))]
 defmt::timestamp!("{=u64:us}", clock().micros());
 
-/// defmt global logger writing encoded frames, byte by byte, to the console register. A
-/// critical section covers each frame, so frames from interrupt handlers and the program never
-/// interleave.
+/// Writes defmt frame bytes to the simulation-control console register; the board's
+/// transport for the shared defmt logger (`logger.rs`).
 #[cfg(all(feature = "console-logger", target_arch = "riscv32"))]
-mod console_logger {
-    use super::map;
+pub(crate) fn console_emit(bytes: &[u8]) {
     use crate::mmio::{Mmio, RegisterBus};
-    use core::cell::UnsafeCell;
-    use core::sync::atomic::{AtomicBool, Ordering};
-
-    fn emit(bytes: &[u8]) {
-        // SAFETY: the console register of the simulation-control device.
-        let console = unsafe { Mmio::new(map::CONSOLE) };
-        for &b in bytes {
-            console.write32(0, u32::from(b));
-        }
-    }
-
-    struct State {
-        encoder: defmt::Encoder,
-        restore: critical_section::RestoreState,
-    }
-
-    struct Shared(UnsafeCell<State>);
-
-    // SAFETY: `State` is only touched between `acquire` and `release`, which hold a critical
-    // section (single hart: interrupts off) and the `TAKEN` flag.
-    unsafe impl Sync for Shared {}
-
-    static TAKEN: AtomicBool = AtomicBool::new(false);
-    static STATE: Shared = Shared(UnsafeCell::new(State {
-        encoder: defmt::Encoder::new(),
-        restore: critical_section::RestoreState::invalid(),
-    }));
-
-    #[defmt::global_logger]
-    struct ConsoleLogger;
-
-    // SAFETY: frames are serialised by the critical section taken in `acquire` and released
-    // in `release`; `write`/`flush`/`release` are only called by defmt between those two.
-    unsafe impl defmt::Logger for ConsoleLogger {
-        fn acquire() {
-            // SAFETY: paired with the `critical_section::release` in `release`.
-            let restore = unsafe { critical_section::acquire() };
-            if TAKEN.swap(true, Ordering::Acquire) {
-                panic!("defmt logger re-entered");
-            }
-            // SAFETY: we hold the critical section and the `TAKEN` flag.
-            let state = unsafe { &mut *STATE.0.get() };
-            state.restore = restore;
-            state.encoder.start_frame(emit);
-        }
-
-        unsafe fn flush() {
-            // Every byte reaches the console register as soon as it is encoded.
-        }
-
-        unsafe fn release() {
-            // SAFETY: called after `acquire`, which took the critical section and the flag.
-            let state = unsafe { &mut *STATE.0.get() };
-            state.encoder.end_frame(emit);
-            let restore = state.restore;
-            TAKEN.store(false, Ordering::Release);
-            // SAFETY: releases the critical section `acquire` took, exactly once.
-            unsafe { critical_section::release(restore) };
-        }
-
-        unsafe fn write(bytes: &[u8]) {
-            // SAFETY: called between `acquire` and `release`.
-            let state = unsafe { &mut *STATE.0.get() };
-            state.encoder.write(bytes, emit);
-        }
+    // SAFETY: `map::CONSOLE` is the console register of the SoC's simulation-control device,
+    // always mapped on this board; writing it has no effect beyond emitting the byte.
+    let console = unsafe { Mmio::new(map::CONSOLE) };
+    for &b in bytes {
+        console.write32(0, u32::from(b));
     }
 }
 
