@@ -297,8 +297,12 @@ impl Client {
 
     /// Copies bytes to transmit into `buf`; returns how many.
     pub fn transmit(&mut self, buf: &mut [u8]) -> usize {
-        let n = self.tx_pending().min(buf.len());
-        buf[..n].copy_from_slice(&self.tx[self.tx_pos..self.tx_pos + n]);
+        let pending = self.tx.get(self.tx_pos..self.tx_len).unwrap_or_default();
+        let mut n = 0;
+        for (dst, &src) in buf.iter_mut().zip(pending) {
+            *dst = src;
+            n += 1;
+        }
         self.tx_pos += n;
         n
     }

@@ -204,10 +204,9 @@ impl Deframer {
             (State::InMessage { header }, TERMINATOR) => {
                 self.state = State::Idle;
                 let len = core::mem::take(&mut self.len);
-                if len == 0 {
+                let Some(&got) = len.checked_sub(1).and_then(|i| self.buf.get(i)) else {
                     return self.fail(DeframeError::MissingChecksum { header });
-                }
-                let got = self.buf[len - 1];
+                };
                 // `sum` covers the header, the data and the checksum byte itself.
                 let expected = (self.sum ^ got) & 0x7F;
                 if expected != got {
@@ -220,7 +219,7 @@ impl Deframer {
                 self.stats.frames = self.stats.frames.wrapping_add(1);
                 Some(Ok(RawMessage {
                     header,
-                    data: &self.buf[..len - 1],
+                    data: self.buf.get(..len - 1).unwrap_or_default(),
                 }))
             }
             (State::InMessage { header: old }, new @ 0x80..=0xFE) => {
@@ -234,12 +233,12 @@ impl Deframer {
                 })
             }
             (State::InMessage { header }, data @ 0x00..=0x7F) => {
-                if self.len == self.buf.len() {
+                let Some(slot) = self.buf.get_mut(self.len) else {
                     self.state = State::Skipping;
                     self.len = 0;
                     return self.fail(DeframeError::Oversize { header });
-                }
-                self.buf[self.len] = data;
+                };
+                *slot = data;
                 self.len += 1;
                 self.sum ^= data;
                 None

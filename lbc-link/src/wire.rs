@@ -190,19 +190,24 @@ pub fn emit_frame<F>(header: u8, out: &mut [u8], fill: F) -> Result<usize, Encod
 where
     F: FnOnce(&mut crate::pack::BitWriter<'_>) -> Result<(), EncodeError>,
 {
-    if out.len() < 3 {
+    let Some((head, body)) = out.split_first_mut() else {
         return Err(EncodeError::BufferTooSmall { needed: 3 });
-    }
-    let cap = out.len() - 3;
+    };
+    let Some((area, _)) = body.split_last_chunk_mut::<{ field::TRAILER }>() else {
+        return Err(EncodeError::BufferTooSmall { needed: 3 });
+    };
     let data_len = {
-        let mut w = crate::pack::BitWriter::new(&mut out[1..1 + cap]);
+        let mut w = crate::pack::BitWriter::new(area);
         fill(&mut w)?;
         w.finish().map_err(pack_error)?
     };
     let len = frame_len(data_len);
-    out[0] = header;
-    let mut frame = Frame::new_unchecked(&mut out[..len]);
-    frame.fill_checksum();
+    *head = header;
+    let cs = checksum(header, body.get(..data_len).unwrap_or_default());
+    let trailer = body
+        .get_mut(data_len..data_len + field::TRAILER)
+        .ok_or(EncodeError::BufferTooSmall { needed: len })?;
+    trailer.copy_from_slice(&[cs, TERMINATOR]);
     Ok(len)
 }
 

@@ -944,11 +944,12 @@ impl<const N: usize> Endpoint<N> {
                     PendingKind::Acked => now + self.timeout(attempts + 1),
                     PendingKind::Repeat { .. } => now + self.repeat_gap(),
                 };
-                let p = &mut self.pending[i];
-                p.attempts = attempts.saturating_add(1);
-                p.due = due;
-                if let PendingKind::Repeat { left } = &mut p.kind {
-                    *left -= 1;
+                if let Some(p) = self.pending.get_mut(i) {
+                    p.attempts = attempts.saturating_add(1);
+                    p.due = due;
+                    if let PendingKind::Repeat { left } = &mut p.kind {
+                        *left -= 1;
+                    }
                 }
                 i += 1;
             } else {

@@ -179,13 +179,13 @@ impl<const N: usize> NeighbourTable<N> {
                 } else {
                     let (i, oldest) = self
                         .entries
-                        .iter()
+                        .iter_mut()
                         .enumerate()
                         .min_by_key(|(_, n)| n.last_heard)?;
                     if !oldest.is_stale(now, stale_after_us) {
                         return None;
                     }
-                    self.entries[i] = Neighbour::new(addr, now);
+                    *oldest = Neighbour::new(addr, now);
                     i
                 }
             }

@@ -757,7 +757,7 @@ impl Frame {
                 w.bytes(mac)?;
             }
         }
-        let crc = CRC16.checksum(&w.buf[..w.pos]);
+        let crc = CRC16.checksum(w.buf.get(..w.pos).ok_or(EncodeError::BufferTooSmall)?);
         w.u16(crc)?;
         Ok(w.pos)
     }
@@ -766,7 +766,8 @@ impl Frame {
     pub fn encode(&self, buf: &mut [u8]) -> Result<usize, EncodeError> {
         let mut raw = [0u8; MAX_RAW];
         let n = self.emit_raw(&mut raw)?;
-        let enc = cobs::try_encode(&raw[..n], buf).map_err(|_| EncodeError::BufferTooSmall)?;
+        let raw = raw.get(..n).ok_or(EncodeError::BufferTooSmall)?;
+        let enc = cobs::try_encode(raw, buf).map_err(|_| EncodeError::BufferTooSmall)?;
         *buf.get_mut(enc).ok_or(EncodeError::BufferTooSmall)? = 0;
         Ok(enc + 1)
     }
@@ -779,7 +780,8 @@ pub type Encoded = Vec<u8, MAX_ENCODED>;
 pub fn encode_frame(frame: &Frame) -> Result<Encoded, EncodeError> {
     let mut buf = [0u8; MAX_ENCODED];
     let n = frame.encode(&mut buf)?;
-    Encoded::from_slice(&buf[..n]).map_err(|_| EncodeError::BufferTooSmall)
+    let bytes = buf.get(..n).ok_or(EncodeError::BufferTooSmall)?;
+    Encoded::from_slice(bytes).map_err(|_| EncodeError::BufferTooSmall)
 }
 
 #[cfg(test)]

@@ -192,14 +192,23 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
         ier.set_rx_available(true);
         ier.set_line_status(true);
         uart.set_ier(ier);
-        critical_section::with(|cs| {
-            *self.isr.borrow_ref_mut(cs) = Some(IsrHalf {
+        // Borrows of the interrupt half live only inside critical sections, so this one is
+        // never refused; if it were, the port would not work, so say so instead of going on.
+        let installed = critical_section::with(|cs| {
+            let Ok(mut isr) = self.isr.borrow(cs).try_borrow_mut() else {
+                return false;
+            };
+            *isr = Some(IsrHalf {
                 uart,
                 ier,
                 rx: rx_prod,
                 tx: tx_cons,
             });
+            true
         });
+        if !installed {
+            return Err(OpenError::AlreadyOpen);
+        }
         Ok(Port {
             state: self,
             rx: rx_cons,
@@ -211,7 +220,9 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
     /// FIFO, and records line errors. Call it from the handler of this UART's interrupt.
     pub fn on_interrupt(&self) {
         critical_section::with(|cs| {
-            let mut isr = self.isr.borrow_ref_mut(cs);
+            let Ok(mut isr) = self.isr.borrow(cs).try_borrow_mut() else {
+                return;
+            };
             let Some(h) = isr.as_mut() else {
                 return;
             };
@@ -295,7 +306,10 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
     }
 
     fn with_isr<R>(&self, f: impl FnOnce(&mut IsrHalf<B>) -> R) -> Option<R> {
-        critical_section::with(|cs| self.isr.borrow_ref_mut(cs).as_mut().map(f))
+        critical_section::with(|cs| {
+            let mut isr = self.isr.borrow(cs).try_borrow_mut().ok()?;
+            isr.as_mut().map(f)
+        })
     }
 }
 

@@ -137,12 +137,18 @@ fn put(out: &mut [u8], at: usize, bytes: &[u8]) -> Result<(), EncodeError> {
     Ok(())
 }
 
+/// Little-endian `u16` at `at`; callers check the length first, so the `0` fallback is unused.
 fn u16_at(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([b[at], b[at + 1]])
+    b.get(at..)
+        .and_then(<[u8]>::first_chunk)
+        .map_or(0, |&w| u16::from_le_bytes(w))
 }
 
+/// Little-endian `u32` at `at`; callers check the length first, so the `0` fallback is unused.
 fn u32_at(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+    b.get(at..)
+        .and_then(<[u8]>::first_chunk)
+        .map_or(0, |&w| u32::from_le_bytes(w))
 }
 
 fn body(payload: &[u8]) -> Result<&[u8], DecodeError> {
@@ -168,7 +174,12 @@ fn expect_len(tag: Tag, body: &[u8], expected: usize) -> Result<(), DecodeError>
 fn lbc_frame(bytes: &[u8]) -> Result<(u8, &[u8]), DecodeError> {
     Frame::new_checked(bytes).map_err(DecodeError::LbcFrame)?;
     // A checked frame is header, data, checksum, terminator.
-    Ok((bytes[0], &bytes[1..bytes.len() - 2]))
+    match bytes {
+        [header, data @ .., _, _] => Ok((*header, data)),
+        _ => Err(DecodeError::LbcFrame(FrameError::TooShort {
+            len: bytes.len(),
+        })),
+    }
 }
 
 impl Request {

@@ -365,26 +365,28 @@ impl Program {
         let mut buf = [0u8; 32];
         let mut budget = RX_BUDGET;
         while budget > 0 {
-            let n = lbc.read(&mut buf[..budget.min(32)]);
+            let len = budget.min(buf.len());
+            let n = lbc.read(buf.get_mut(..len).unwrap_or_default());
             if n == 0 {
                 break;
             }
             budget -= n;
-            for i in 0..n {
-                self.feed_lbc(now, &buf[i..=i], log);
+            for byte in buf.iter().take(n) {
+                self.feed_lbc(now, core::slice::from_ref(byte), log);
             }
         }
         self.feed_lbc(now, &[], log);
 
         let mut budget = RX_BUDGET;
         while budget > 0 {
-            let n = radio.read(&mut buf[..budget.min(32)]);
+            let len = budget.min(buf.len());
+            let n = radio.read(buf.get_mut(..len).unwrap_or_default());
             if n == 0 {
                 break;
             }
             budget -= n;
             match self.mac.as_mut() {
-                Some(m) => m.push_rx(now, &buf[..n]),
+                Some(m) => m.push_rx(now, buf.get(..n).unwrap_or(&buf)),
                 None => self.counters.radio_rx_dropped += n as u32,
             }
         }
@@ -446,7 +448,9 @@ impl Program {
         self.client.poll(Instant(now), bytes, |e| {
             let _ = events.push(e);
         });
-        for e in events {
+        // Oldest first: reversed, then popped from the end.
+        events.reverse();
+        while let Some(e) = events.pop() {
             self.on_link(now, e, log);
         }
     }
@@ -596,10 +600,13 @@ impl Program {
     }
 
     fn send_step<S: LogSink + ?Sized>(&mut self, now: u64, log: &mut S) {
-        if STEPS[self.step] == Step::ReadKey && self.mac.is_some() {
+        if STEPS.get(self.step) == Some(&Step::ReadKey) && self.mac.is_some() {
             self.step += 1;
         }
-        let cmd = match STEPS[self.step] {
+        let Some(&step) = STEPS.get(self.step) else {
+            return self.bringup_failed(now, log);
+        };
+        let cmd = match step {
             Step::Init => Command::Init,
             Step::ReadId => Command::ReadId,
             Step::ReadKey => {
@@ -623,7 +630,7 @@ impl Program {
         if self.phase != Phase::BringingUp {
             return;
         }
-        if STEPS[self.step] == Step::ReadKey && self.mac.is_none() {
+        if STEPS.get(self.step) == Some(&Step::ReadKey) && self.mac.is_none() {
             if let LbcReply::ReadEpData { value, .. } = reply {
                 // Cannot fail: the step ends once eight words are read.
                 let _ = self.key_words.push(*value);
@@ -1053,7 +1060,11 @@ impl Program {
                     break;
                 }
             }
-            let n = lbc.write(&self.lbc_tx[self.lbc_tx_pos..self.lbc_tx_len]);
+            let pending = self
+                .lbc_tx
+                .get(self.lbc_tx_pos..self.lbc_tx_len)
+                .unwrap_or_default();
+            let n = lbc.write(pending);
             if n == 0 {
                 break;
             }
@@ -1070,7 +1081,11 @@ impl Program {
                     break;
                 }
             }
-            let n = radio.write(&self.radio_tx[self.radio_tx_pos..self.radio_tx_len]);
+            let pending = self
+                .radio_tx
+                .get(self.radio_tx_pos..self.radio_tx_len)
+                .unwrap_or_default();
+            let n = radio.write(pending);
             if n == 0 {
                 break;
             }
