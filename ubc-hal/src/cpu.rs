@@ -20,13 +20,19 @@ pub fn idle_unless(ready: impl FnOnce() -> bool) {
     }
 }
 
-/// Enables machine-mode interrupts globally (`mstatus.MIE`).
+/// Enables the machine external and timer interrupts (`mie`) and then machine-mode interrupts
+/// globally (`mstatus.MIE`): the two sources every board serves.
 ///
-/// Interrupt handlers must already be installed for every source enabled in `mie`.
+/// Interrupt handlers must already be installed for both.
 #[cfg(target_arch = "riscv32")]
 pub(crate) fn enable_interrupts() {
-    // SAFETY: the board installs its handlers (riscv-rt trap vector plus the `rt` dispatchers)
-    // before it calls this, and every shared state they touch sits behind a critical section
-    // or atomics.
-    unsafe { riscv::interrupt::machine::enable() }
+    use riscv::interrupt::machine::{enable_interrupt, Interrupt};
+    // SAFETY: the board installs its handlers (riscv-rt trap vector plus the `rt` dispatchers
+    // for both sources) before it calls this, and every shared state they touch sits behind a
+    // critical section or atomics.
+    unsafe {
+        enable_interrupt(Interrupt::MachineExternal);
+        enable_interrupt(Interrupt::MachineTimer);
+        riscv::interrupt::machine::enable();
+    }
 }

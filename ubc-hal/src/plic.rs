@@ -80,6 +80,15 @@ impl<B: RegisterBus> Plic<B> {
         );
     }
 
+    /// Gives source number `n` a priority and lets it interrupt this context; numbers that
+    /// name no source (0, or beyond 1023) are left alone.
+    pub fn route(&self, n: u32, priority: u8) {
+        if let Some(source) = Source::new(n) {
+            self.set_priority(source, priority);
+            self.enable(source);
+        }
+    }
+
     /// Lets `source` interrupt this context.
     pub fn enable(&self, source: Source) {
         let (offset, bit) = self.enable_word(source);
@@ -163,6 +172,18 @@ mod tests {
         bus.write32(0x1004, 1 << 3);
         assert!(plic.is_pending(src(35)));
         assert!(!plic.is_pending(src(34)));
+    }
+
+    #[test]
+    fn route_sets_priority_and_enable_and_ignores_non_sources() {
+        let bus = RamBus::new(0x20_2000);
+        let plic = Plic::new(&bus, 0);
+        plic.route(33, 2);
+        assert_eq!(bus.read32(4 * 33), 2);
+        assert!(plic.is_enabled(src(33)));
+        plic.route(0, 5);
+        assert_eq!(bus.read32(0), 0);
+        assert_eq!(bus.read32(0x2000), 0);
     }
 
     #[test]

@@ -10,7 +10,7 @@ use crate::clint::Clint;
 use crate::exit::TestDevice;
 use crate::mmio::Mmio;
 use crate::pci::{Ecam, IoAllocator, IoDevice, IoWindow, PciError};
-use crate::plic::{Plic, Source};
+use crate::plic::Plic;
 use crate::serial::{OpenError, Port, PortState};
 use crate::uart::{Config, Ns16550};
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
@@ -167,12 +167,12 @@ impl Board {
         let lbc = LBC_PORT
             .open(uart0, &Config::with_clock(UART0_CLOCK_HZ))
             .map_err(BoardError::Lbc)?;
-        enable_source(&plic, irq::UART0);
+        plic.route(irq::UART0, UART_PRIORITY);
 
         let (radio, radio_info) = match open_radio() {
             Ok((port, info)) => {
                 RADIO_SOURCE.store(info.plic_source, Ordering::Release);
-                enable_source(&plic, info.plic_source);
+                plic.route(info.plic_source, UART_PRIORITY);
                 (Ok(port), Some(info))
             }
             Err(e) => (Err(e), None),
@@ -189,13 +189,6 @@ impl Board {
             exit: exit_device(),
             plic,
         })
-    }
-}
-
-fn enable_source(plic: &Plic<Mmio>, n: u32) {
-    if let Some(source) = Source::new(n) {
-        plic.set_priority(source, UART_PRIORITY);
-        plic.enable(source);
     }
 }
 
@@ -253,12 +246,6 @@ mod handlers {
     use riscv::interrupt::machine::{Exception, Interrupt};
 
     pub(super) fn enable() {
-        // SAFETY: the handlers below serve both sources; their shared state is behind
-        // critical sections and atomics.
-        unsafe {
-            riscv::interrupt::machine::enable_interrupt(Interrupt::MachineExternal);
-            riscv::interrupt::machine::enable_interrupt(Interrupt::MachineTimer);
-        }
         crate::cpu::enable_interrupts();
     }
 

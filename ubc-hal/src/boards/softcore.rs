@@ -7,7 +7,7 @@
 use crate::clint::Clint;
 use crate::exit::TestDevice;
 use crate::mmio::Mmio;
-use crate::plic::{Plic, Source};
+use crate::plic::Plic;
 use crate::serial::{OpenError, Port, PortState};
 use crate::uart::{Config, Ns16550};
 use core::sync::atomic::{AtomicBool, Ordering};
@@ -144,13 +144,13 @@ impl Board {
         let lbc = LBC_PORT
             .open(uart0, &Config::with_clock(CLOCK_HZ))
             .map_err(BoardError::Lbc)?;
-        enable_source(&plic, irq::UART0);
+        plic.route(irq::UART0, UART_PRIORITY);
 
         // SAFETY: UART1's register block on the softcore SoC.
         let uart1 = Ns16550::new(unsafe { Mmio::new(map::UART1) });
         let (radio, radio_info) = match RADIO_PORT.open(uart1, &Config::with_clock(CLOCK_HZ)) {
             Ok(port) => {
-                enable_source(&plic, irq::UART1);
+                plic.route(irq::UART1, UART_PRIORITY);
                 let info = RadioInfo {
                     base: map::UART1,
                     plic_source: irq::UART1,
@@ -171,13 +171,6 @@ impl Board {
             exit: exit_device(),
             plic,
         })
-    }
-}
-
-fn enable_source(plic: &Plic<Mmio>, n: u32) {
-    if let Some(source) = Source::new(n) {
-        plic.set_priority(source, UART_PRIORITY);
-        plic.enable(source);
     }
 }
 
@@ -220,12 +213,6 @@ mod handlers {
     use riscv::interrupt::machine::Interrupt;
 
     pub(super) fn enable() {
-        // SAFETY: the handlers below serve both sources; their shared state is behind
-        // critical sections and atomics.
-        unsafe {
-            riscv::interrupt::machine::enable_interrupt(Interrupt::MachineExternal);
-            riscv::interrupt::machine::enable_interrupt(Interrupt::MachineTimer);
-        }
         crate::cpu::enable_interrupts();
     }
 
