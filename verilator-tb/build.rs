@@ -1,4 +1,6 @@
-//! Verilates the SoC (rtl/*.v) and compiles the C++ model with the shim in csrc/.
+//! Verilates the SoC (rtl/*.v) and links the C++ model with `csrc/sim.cpp` into the `vtb-sim`
+//! executable, which the harness runs as a child process (its path reaches the crate as the
+//! compile-time variable `VTB_SIM_EXE`).
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -30,7 +32,7 @@ fn verilator_root() -> PathBuf {
 fn main() {
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     let mdir = out_dir.join("obj_dir");
-    for f in RTL.iter().chain(["csrc/shim.cpp", "build.rs"].iter()) {
+    for f in RTL.iter().chain(["csrc/sim.cpp", "build.rs"].iter()) {
         println!("cargo:rerun-if-changed={f}");
     }
     println!("cargo:rerun-if-env-changed=VERILATOR_ROOT");
@@ -78,7 +80,7 @@ fn main() {
         .include(&include)
         .include(include.join("vltstd"))
         .include(&mdir)
-        .file("csrc/shim.cpp")
+        .file("csrc/sim.cpp")
         .file(include.join("verilated.cpp"))
         .file(include.join("verilated_threads.cpp"));
     let mut generated: Vec<PathBuf> = std::fs::read_dir(&mdir)
@@ -90,6 +92,20 @@ fn main() {
     for f in &generated {
         build.file(f);
     }
-    build.compile("vsoc");
-    println!("cargo:rustc-link-lib=dylib=pthread");
+    let objects = build.compile_intermediates();
+    let exe = out_dir.join("vtb-sim");
+    let status = build
+        .get_compiler()
+        .to_command()
+        .args(&objects)
+        .arg("-o")
+        .arg(&exe)
+        .arg("-lpthread")
+        .status();
+    match status {
+        Ok(s) if s.success() => {}
+        Ok(s) => panic!("linking vtb-sim failed ({s})"),
+        Err(e) => panic!("cannot run the C++ compiler to link vtb-sim: {e}"),
+    }
+    println!("cargo:rustc-env=VTB_SIM_EXE={}", exe.display());
 }

@@ -4,8 +4,9 @@
 // the next instruction; at the clock edge the instruction and its two source registers are
 // captured (synchronous reads, so the register file and instruction memory fit block RAM; a
 // result written in the same edge is forwarded). The execute stage decodes, executes, accesses
-// data memory (read data returned in the same cycle) and writes back. Multiplication is a single-cycle 32x32 product (maps to DSP blocks); division
-// and remainder use an iterative restoring divider (34 cycles). WFI stalls until an enabled
+// data memory (read data returned in the same cycle) and writes back. Multiplication is a
+// single-cycle 32x32 product (maps to DSP blocks) that also serves the shifts; division and
+// remainder use an iterative restoring divider (34 cycles). WFI stalls until an enabled
 // interrupt is pending. Interrupts are taken between instructions, never inside a division.
 //
 // The RVFI-style retirement port is registered: the record of an instruction is valid in the
@@ -60,10 +61,8 @@ module rv_core #(
     // ---------------------------------------------------------------- architectural state
     reg [31:0] pc;
     reg [31:0] regs [0:31];
-`ifndef SYNTHESIS
     integer k;
-    initial for (k = 0; k < 32; k = k + 1) regs[k] = 32'd0;
-`endif
+    initial for (k = 0; k < 32; k = k + 1) regs[k] = 32'd0;  // block-RAM initial contents
 
     // fetch-stage outputs: the instruction in execute and its source registers
     reg [31:0] ir;
@@ -96,8 +95,10 @@ module rv_core #(
     wire [6:0]  f7     = insn[31:25];
     wire [4:0]  f5     = insn[31:27];
 
-    wire [31:0] rs1v = (rs1 == 5'd0) ? 32'd0 : byp1 ? byp_val : rf_rs1;
-    wire [31:0] rs2v = (rs2 == 5'd0) ? 32'd0 : byp2 ? byp_val : rf_rs2;
+    // x0 is never written, so its block-RAM word keeps its initial zero; a write-back is
+    // forwarded only for a nonzero rd.
+    wire [31:0] rs1v = byp1 ? byp_val : rf_rs1;
+    wire [31:0] rs2v = byp2 ? byp_val : rf_rs2;
 
     wire [31:0] imm_i = {{20{insn[31]}}, insn[31:20]};
     wire [31:0] imm_s = {{20{insn[31]}}, insn[31:25], insn[11:7]};
@@ -138,7 +139,7 @@ module rv_core #(
 
     // ---------------------------------------------------------------- ALU
     // One adder serves ADD/SUB/ADDI, load/store/AMO addresses and JALR targets; one 33-bit
-    // subtractor serves branches and SLT*; left shifts reuse the right shifter on reversed bits.
+    // subtractor serves branches and SLT*; shifts use the multiplier (below).
     wire [31:0] alu_b  = is_op ? rs2v : imm_i;
     wire [31:0] add_b  = is_op ? rs2v : is_store ? imm_s : is_amo_any ? 32'd0 : imm_i;
     wire        do_sub = is_op && f7[5];
@@ -151,21 +152,13 @@ module rv_core #(
     wire        eq         = rs1v == cmp_b;
     wire        br_taken   = f3[2] ? lt ^ f3[0] : eq ^ f3[0];
 
-    function [31:0] reverse(input [31:0] v);
-        integer b;
-        for (b = 0; b < 32; b = b + 1) reverse[b] = v[31 - b];
-    endfunction
     wire [4:0]  shamt   = alu_b[4:0];
-    wire [31:0] sh_in   = f3 == 3'd1 ? reverse(rs1v) : rs1v;
-    wire        sh_fill = f3 == 3'd5 && f7[5] && rs1v[31];
-    wire [63:0] sh_wide = {{32{sh_fill}}, sh_in} >> shamt;
-    wire [31:0] sh_out  = f3 == 3'd1 ? reverse(sh_wide[31:0]) : sh_wide[31:0];
 
     reg  [31:0] alu_out;
     always @(*) begin
         case (f3)
             3'd0: alu_out = sum;
-            3'd1, 3'd5: alu_out = sh_out;
+            3'd1, 3'd5: alu_out = mul_out;  // shifts run on the multiplier
             3'd2, 3'd3: alu_out = {31'd0, lt};
             3'd4: alu_out = rs1v ^ alu_b;
             3'd6: alu_out = rs1v | alu_b;
@@ -174,31 +167,39 @@ module rv_core #(
     end
 
     // ---------------------------------------------------------------- multiply / divide
-    wire [63:0] prod_u = {32'd0, rs1v} * {32'd0, rs2v};
-    wire [31:0] corr_a = rs1v[31] ? rs2v : 32'd0;
-    wire [31:0] corr_b = rs2v[31] ? rs1v : 32'd0;
-    reg  [31:0] mul_out;
-    always @(*) begin
-        case (f3[1:0])
-            2'd0: mul_out = prod_u[31:0];
-            2'd1: mul_out = prod_u[63:32] - corr_a - corr_b;
-            2'd2: mul_out = prod_u[63:32] - corr_a;
-            default: mul_out = prod_u[63:32];
-        endcase
-    end
+    // One 32x32 unsigned multiplier (DSP blocks) serves MUL*, the shifts, and the operand
+    // magnitudes below serve it and the divider. Signed products multiply magnitudes and
+    // negate the 64-bit result when the signs differ; only its high word is needed then:
+    // ~hi + (lo == 0). Shifts: x << n is the low word of x * 2^n; for n > 0, x >> n is the
+    // high word of x * 2^(32-n), and x >>> n the same with x signed. A zero right shift takes
+    // the low word of x * 1.
+    wire        is_shift = (is_opimm | is_op) && f3[1:0] == 2'b01;
+    wire        sh_zero  = shamt == 5'd0;
+    // signed operands: DIV/REM (both), MULH (both), MULHSU (rs1), SRA/SRAI by n > 0 (rs1)
+    wire        sign_a   = is_muldiv ? (f3[2] ? !f3[0] : f3[1] ^ f3[0]) :
+                           is_shift && f3[2] && f7[5] && !sh_zero;
+    wire        sign_b   = is_muldiv && (f3[2] ? !f3[0] : f3[1:0] == 2'd1);
+    wire        neg_a    = sign_a && rs1v[31];
+    wire        neg_b    = sign_b && rs2v[31];
+    wire [31:0] abs_a    = (rs1v ^ {32{neg_a}}) + {31'd0, neg_a};  // conditional negation
+    wire [31:0] abs_b    = (rs2v ^ {32{neg_b}}) + {31'd0, neg_b};
+    wire [4:0]  sh_pow   = f3[2] ? 5'd0 - shamt : shamt;
+    wire [31:0] mul_b    = is_shift ? 32'd1 << sh_pow : abs_b;
+    wire [63:0] prod_u   = {32'd0, abs_a} * {32'd0, mul_b};
+    wire        prod_neg = neg_a ^ neg_b;
+    wire        lo_zero  = prod_u[31:0] == 32'd0;
+    wire [31:0] hi_word  = (prod_u[63:32] ^ {32{prod_neg}}) + {31'd0, prod_neg & lo_zero};
+    wire        use_lo   = is_shift ? !f3[2] || sh_zero : f3[1:0] == 2'd0;
+    wire [31:0] mul_out  = use_lo ? prod_u[31:0] : hi_word;
 
-    wire        div_signed = !f3[0];
-    wire        neg_a  = div_signed && rs1v[31];
-    wire        neg_b  = div_signed && rs2v[31];
-    wire [31:0] abs_a  = neg_a ? -rs1v : rs1v;
-    wire [31:0] abs_b  = neg_b ? -rs2v : rs2v;
     wire [32:0] md_sh  = {md_rem, md_quo[31]};
     wire [32:0] md_dif = md_sh - {1'b0, md_div};
     wire        md_done = md_busy && md_cnt == 6'd32;
     wire [31:0] md_res = f3[1] ? md_rem : md_quo;
-    wire        md_neg = f3[1] ? neg_a : neg_a ^ neg_b;
-    wire [31:0] div_out = rs2v == 32'd0 ? (f3[1] ? rs1v : 32'hffff_ffff) :
-                          md_neg ? -md_res : md_res;
+    // Dividing by zero needs no special case: the loop yields an all-ones quotient and the
+    // dividend's magnitude as remainder; only the quotient's sign fix-up is suppressed.
+    wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
+    wire [31:0] div_out = (md_res ^ {32{md_neg}}) + {31'd0, md_neg};
 
     // ---------------------------------------------------------------- memory access
     wire [31:0] ls_addr = sum;
@@ -223,7 +224,12 @@ module rv_core #(
     wire [31:0] st_data = f3[1:0] == 2'd0 ? {4{rs2v[7:0]}} :
                           f3[1:0] == 2'd1 ? {2{rs2v[15:0]}} : rs2v;
 
-    reg [31:0] amo_out;
+    // AMOMIN/MAX[U] share one 33-bit comparison (sign-extended for the signed pair).
+    wire        amo_signed = !f5[3];
+    wire [32:0] amo_diff = {amo_signed & dmem_rdata[31], dmem_rdata} -
+                           {amo_signed & rs2v[31], rs2v};
+    wire        amo_lt = amo_diff[32];
+    reg  [31:0] amo_out;
     always @(*) begin
         case (f5)
             5'b00001: amo_out = rs2v;
@@ -231,10 +237,10 @@ module rv_core #(
             5'b00100: amo_out = dmem_rdata ^ rs2v;
             5'b01100: amo_out = dmem_rdata & rs2v;
             5'b01000: amo_out = dmem_rdata | rs2v;
-            5'b10000: amo_out = $signed(dmem_rdata) < $signed(rs2v) ? dmem_rdata : rs2v;
-            5'b10100: amo_out = $signed(dmem_rdata) < $signed(rs2v) ? rs2v : dmem_rdata;
-            5'b11000: amo_out = dmem_rdata < rs2v ? dmem_rdata : rs2v;
-            default:  amo_out = dmem_rdata < rs2v ? rs2v : dmem_rdata;
+            5'b10000: amo_out = amo_lt ? dmem_rdata : rs2v;
+            5'b10100: amo_out = amo_lt ? rs2v : dmem_rdata;
+            5'b11000: amo_out = amo_lt ? dmem_rdata : rs2v;
+            default:  amo_out = amo_lt ? rs2v : dmem_rdata;
         endcase
     end
     wire sc_ok = res_valid && res_addr == ls_addr;
@@ -243,27 +249,38 @@ module rv_core #(
     wire [11:0] csr_addr = insn[31:20];
     wire [31:0] mip_v = {20'd0, irq_external, 3'd0, irq_timer, 3'd0, irq_software, 3'd0};
     wire [31:0] mstatus_v = {19'd0, 2'b11, 3'd0, mstatus_mpie, 3'd0, mstatus_mie, 3'd0};
+    // The read mux decodes only the address bits that tell the implemented CSRs apart;
+    // `csr_exists` decodes the whole address (anything else is an illegal instruction).
     reg  [31:0] csr_rdata;
     reg         csr_exists;
     always @(*) begin
-        csr_exists = 1'b1;
+        if (csr_addr[11])
+            csr_rdata = csr_addr[10:8] == 3'b111 ? 32'd0 :
+                        csr_addr[1] ? (csr_addr[7] ? minstret[63:32] : minstret[31:0]) :
+                                      (csr_addr[7] ? mcycle[63:32] : mcycle[31:0]);
+        else if (csr_addr[6])
+            case (csr_addr[2:0])
+                3'd0: csr_rdata = mscratch;
+                3'd1: csr_rdata = mepc;
+                3'd2: csr_rdata = mcause;
+                3'd3: csr_rdata = mtval;
+                default: csr_rdata = mip_v;
+            endcase
+        else if (csr_addr[4]) csr_rdata = 32'd0;
+        else
+            case (csr_addr[2:0])
+                3'd0: csr_rdata = mstatus_v;
+                3'd1: csr_rdata = 32'h4000_1101;
+                3'd4: csr_rdata = mie_r;
+                default: csr_rdata = mtvec;
+            endcase
+    end
+    always @(*) begin
         case (csr_addr)
-            12'h300: csr_rdata = mstatus_v;
-            12'h301: csr_rdata = 32'h4000_1101;
-            12'h304: csr_rdata = mie_r;
-            12'h305: csr_rdata = mtvec;
-            12'h310: csr_rdata = 32'd0;
-            12'h340: csr_rdata = mscratch;
-            12'h341: csr_rdata = mepc;
-            12'h342: csr_rdata = mcause;
-            12'h343: csr_rdata = mtval;
-            12'h344: csr_rdata = mip_v;
-            12'hb00, 12'hc00: csr_rdata = mcycle[31:0];
-            12'hb80, 12'hc80: csr_rdata = mcycle[63:32];
-            12'hb02, 12'hc02: csr_rdata = minstret[31:0];
-            12'hb82, 12'hc82: csr_rdata = minstret[63:32];
-            12'hf11, 12'hf12, 12'hf13, 12'hf14, 12'hf15: csr_rdata = 32'd0;
-            default: begin csr_rdata = 32'd0; csr_exists = 1'b0; end
+            12'h300, 12'h301, 12'h304, 12'h305, 12'h310, 12'h340, 12'h341, 12'h342, 12'h343,
+            12'h344, 12'hb00, 12'hc00, 12'hb80, 12'hc80, 12'hb02, 12'hc02, 12'hb82, 12'hc82,
+            12'hf11, 12'hf12, 12'hf13, 12'hf14, 12'hf15: csr_exists = 1'b1;
+            default: csr_exists = 1'b0;
         endcase
     end
     wire        csr_writes = f3[1:0] == 2'b01 || rs1 != 5'd0;
@@ -279,10 +296,10 @@ module rv_core #(
     wire [31:0] pc_plus4 = pc + 32'd4;
     wire [31:0] jalr_tgt = sum & ~32'd1;
     wire [31:0] pc_tgt   = pc + (is_jal ? imm_j : is_auipc ? imm_u : imm_b);
-    wire [31:0] next_pc  = is_jal ? pc_tgt :
-                           is_jalr ? jalr_tgt :
-                           (is_branch && br_taken) ? pc_tgt :
-                           is_mret ? mepc : pc_plus4;
+    wire        to_tgt   = is_jal | (is_branch && br_taken);
+    wire [31:0] next_pc  = ({32{to_tgt}} & pc_tgt) | ({32{is_jalr}} & jalr_tgt) |
+                           ({32{is_mret}} & mepc) |
+                           ({32{!(to_tgt | is_jalr | is_mret)}} & pc_plus4);
     wire jump = is_jal | is_jalr | (is_branch && br_taken);
 
     wire exc_illegal = !legal || (is_csr && csr_illegal) || insn[1:0] != 2'b11;
@@ -320,15 +337,12 @@ module rv_core #(
 
     reg [31:0] rd_val;
     always @(*) begin
-        if (is_lui) rd_val = imm_u;
-        else if (is_auipc) rd_val = pc_tgt;
-        else if (is_jal || is_jalr) rd_val = pc_plus4;
-        else if (is_load) rd_val = load_out;
-        else if (is_lr || is_amo) rd_val = dmem_rdata;
-        else if (is_sc) rd_val = {31'd0, !sc_ok};
-        else if (is_csr) rd_val = csr_rdata;
-        else if (is_muldiv) rd_val = f3[2] ? div_out : mul_out;
-        else rd_val = alu_out;
+        // the decoded kinds are exclusive, so an AND-OR replaces a priority chain
+        rd_val = ({32{is_lui}} & imm_u) | ({32{is_auipc}} & pc_tgt) |
+                 ({32{is_jal | is_jalr}} & pc_plus4) | ({32{is_load}} & load_out) |
+                 ({32{is_lr | is_amo}} & dmem_rdata) | {31'd0, is_sc & !sc_ok} |
+                 ({32{is_csr}} & csr_rdata) | ({32{is_muldiv & f3[2]}} & div_out) |
+                 ({32{is_muldiv & !f3[2]}} & mul_out) | ({32{is_opimm | is_op}} & alu_out);
     end
     wire writes_rd = is_lui | is_auipc | is_jal | is_jalr | is_load | is_opimm | is_op |
                      is_muldiv | is_csr | is_amo_any;
@@ -439,24 +453,35 @@ module rv_core #(
                         mstatus_mpie <= 1'b1;
                     end
                     if (is_csr) begin
+                        // A committing CSR instruction has a legal address, so the
+                        // writes decode only the bits that tell the writable CSRs apart
+                        // (misa, mstatush and mip ignore writes).
                         if (csr_writes) begin
-                            case (csr_addr)
-                                12'h300: begin
-                                    mstatus_mie <= csr_wdata[3];
-                                    mstatus_mpie <= csr_wdata[7];
-                                end
-                                12'h304: mie_r <= csr_wdata & 32'h0000_0888;
-                                12'h305: mtvec <= {csr_wdata[31:2], 1'b0, csr_wdata[0]};
-                                12'h340: mscratch <= csr_wdata;
-                                12'h341: mepc <= {csr_wdata[31:2], 2'b00};
-                                12'h342: mcause <= csr_wdata;
-                                12'h343: mtval <= csr_wdata;
-                                12'hb00: mcycle[31:0] <= csr_wdata;
-                                12'hb80: mcycle[63:32] <= csr_wdata;
-                                12'hb02: minstret[31:0] <= csr_wdata;
-                                12'hb82: minstret[63:32] <= csr_wdata;
-                                default: ;
-                            endcase
+                            if (csr_addr[11])  // mcycle(h), minstret(h)
+                                case ({csr_addr[7], csr_addr[1]})
+                                    2'b00: mcycle[31:0] <= csr_wdata;
+                                    2'b10: mcycle[63:32] <= csr_wdata;
+                                    2'b01: minstret[31:0] <= csr_wdata;
+                                    default: minstret[63:32] <= csr_wdata;
+                                endcase
+                            else if (csr_addr[6])  // 0x340..0x344
+                                case (csr_addr[2:0])
+                                    3'd0: mscratch <= csr_wdata;
+                                    3'd1: mepc <= {csr_wdata[31:2], 2'b00};
+                                    3'd2: mcause <= csr_wdata & 32'h8000_000f;  // WLRL
+                                    3'd3: mtval <= csr_wdata;
+                                    default: ;
+                                endcase
+                            else if (!csr_addr[4])  // 0x300..0x305
+                                case (csr_addr[2:0])
+                                    3'd0: begin
+                                        mstatus_mie <= csr_wdata[3];
+                                        mstatus_mpie <= csr_wdata[7];
+                                    end
+                                    3'd4: mie_r <= csr_wdata & 32'h0000_0888;
+                                    3'd5: mtvec <= {csr_wdata[31:2], 1'b0, csr_wdata[0]};
+                                    default: ;
+                                endcase
                         end
                     end
                 end

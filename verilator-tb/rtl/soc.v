@@ -6,6 +6,7 @@
 //   0x1000_0000  UART0 (LBC link)
 //   0x1000_1000  UART1 (radio)
 //   0x8000_0000  RAM, 1 MiB; execution starts at its base
+//   0x8100_0000  frame-grabber window, 0x13_0000 bytes (written by the harness, read by the core)
 `default_nettype none
 
 module soc (
@@ -82,6 +83,8 @@ module soc (
     assign imem_rdata = imem_in_ram ? ram[imem_addr[19:2]] : 32'd0;
 
     wire sel_ram   = dmem_addr[31:20] == 12'h800;
+    localparam [21:0] FMEM_WORDS = 22'h4_C000;  // vision::frame::WINDOW_LEN / 4
+    wire sel_fmem  = dmem_addr[31:24] == 8'h81 && dmem_addr[23:2] < FMEM_WORDS;
     wire sel_sim   = dmem_addr[31:4] == 28'h0010_000;
     wire sel_clint = dmem_addr[31:16] == 16'h0200;
     wire sel_plic  = dmem_addr[31:22] == 10'b0000_1100_00;
@@ -99,6 +102,22 @@ module soc (
             if (dmem_wstrb[1]) ram[dmem_addr[19:2]][15:8] <= dmem_wdata[15:8];
             if (dmem_wstrb[2]) ram[dmem_addr[19:2]][23:16] <= dmem_wdata[23:16];
             if (dmem_wstrb[3]) ram[dmem_addr[19:2]][31:24] <= dmem_wdata[31:24];
+        end
+    end
+
+    // ------------------------------------------------------------------ frame-grabber window
+    // Ordinary memory for the core (data port only); the harness writes it between clock
+    // cycles through the model's public view of `fmem`.
+    reg [31:0] fmem [0:FMEM_WORDS-1] /*verilator public_flat*/;
+    initial for (k = 0; k < FMEM_WORDS; k = k + 1) fmem[k] = 32'd0;
+
+    wire [31:0] fmem_rdata = fmem[dmem_addr[20:2]];
+    always @(posedge clk) begin
+        if (sel_fmem) begin
+            if (dmem_wstrb[0]) fmem[dmem_addr[20:2]][7:0] <= dmem_wdata[7:0];
+            if (dmem_wstrb[1]) fmem[dmem_addr[20:2]][15:8] <= dmem_wdata[15:8];
+            if (dmem_wstrb[2]) fmem[dmem_addr[20:2]][23:16] <= dmem_wdata[23:16];
+            if (dmem_wstrb[3]) fmem[dmem_addr[20:2]][31:24] <= dmem_wdata[31:24];
         end
     end
 
@@ -148,6 +167,7 @@ module soc (
 
     always @(*) begin
         if (sel_ram) dmem_rdata = ram_rdata;
+        else if (sel_fmem) dmem_rdata = fmem_rdata;
         else if (sel_clint) dmem_rdata = clint_rdata;
         else if (sel_plic) dmem_rdata = plic_rdata;
         else if (sel_uart0) dmem_rdata = uart0_rdata;

@@ -182,7 +182,8 @@ impl Hart {
             0x305 => self.mtvec = v & !2,
             0x340 => self.mscratch = v,
             0x341 => self.mepc = v & !3,
-            0x342 => self.mcause = v,
+            // WLRL: only the interrupt bit and a 4-bit code are kept
+            0x342 => self.mcause = v & 0x8000_000f,
             0x343 => self.mtval = v,
             0xb00 => self.mcycle = (self.mcycle & !0xffff_ffff) | u64::from(v),
             0xb80 => self.mcycle = (self.mcycle & 0xffff_ffff) | (u64::from(v) << 32),

@@ -3,7 +3,7 @@
 //! instruction-set model ([`golden`]) and a lockstep checker that compares every retired
 //! instruction of the RTL with the model ([`lockstep`]), and a co-simulation of the SoC with
 //! the emulated lower board on its LBC UART ([`cosim`]). See `docs/soft-core.md`.
-#![deny(unsafe_code)]
+#![forbid(unsafe_code)]
 
 pub mod cosim;
 pub mod golden;

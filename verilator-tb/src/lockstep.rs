@@ -7,6 +7,7 @@
 //! instruction of a handler, the lines at the interrupt entry.
 
 use crate::golden::{Bus, Hart, Retire};
+use crate::model::Record;
 use crate::soc::{Event, Exit, Soc, Stamped, RAM_BASE, RAM_SIZE};
 
 /// A disagreement between the RTL and the model.
@@ -94,12 +95,26 @@ pub enum Stimulus {
     ExternalIrq(bool),
 }
 
+/// The golden model with its RAM, checking RVFI records one by one. [`Lockstep`] pairs one
+/// with a [`Soc`]; [`crate::cosim::LbcCosim::with_checker`] checks a co-simulation.
+#[derive(Debug)]
+pub struct Checker {
+    hart: Hart,
+    bus: ModelBus,
+    checked: u64,
+}
+
+impl Default for Checker {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// Drives a SoC and the golden model in lockstep.
 #[derive(Debug)]
 pub struct Lockstep {
     soc: Soc,
-    hart: Hart,
-    bus: ModelBus,
+    checker: Checker,
 }
 
 impl Default for Lockstep {
@@ -119,36 +134,42 @@ fn is_cycle_read(insn: u32) -> Option<bool> {
     }
 }
 
-impl Lockstep {
-    /// A fresh SoC and model.
+impl Checker {
+    /// A model at the reset address with zeroed RAM.
     pub fn new() -> Self {
         Self {
-            soc: Soc::new(),
             hart: Hart::new(RAM_BASE),
             bus: ModelBus::new(),
+            checked: 0,
         }
     }
 
-    /// Loads words at `addr` into both.
-    pub fn load(&mut self, addr: u32, words: &[u32]) -> Result<(), crate::soc::LoadError> {
-        self.soc.load_words(addr, words)?;
+    /// Copies words into the model's RAM (what was loaded into the SoC).
+    pub fn load(&mut self, addr: u32, words: &[u32]) {
         self.bus.load(addr, words);
+    }
+
+    /// Loads an RV32 ELF image (see [`crate::soc::elf_segments`]) into the model's RAM.
+    pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), crate::soc::ElfError> {
+        for (addr, words) in crate::soc::elf_segments(elf)? {
+            self.bus.load(addr, &words);
+        }
         Ok(())
     }
 
-    /// A word of the model's RAM (equal to the RTL's after a clean run).
-    pub fn model_word(&self, addr: u32) -> Option<u32> {
-        ModelBus::ram_index(addr).map(|i| self.bus.ram[i])
+    /// The model's hart.
+    pub fn hart(&self) -> &Hart {
+        &self.hart
     }
 
-    /// The SoC, for stimulus.
-    pub fn soc_mut(&mut self) -> &mut Soc {
-        &mut self.soc
+    /// Records checked so far.
+    pub fn checked(&self) -> u64 {
+        self.checked
     }
 
     /// Checks one RTL record against the model; advances the model.
-    fn check(&mut self, rtl: &Retire) -> Result<(), Mismatch> {
-        let (mip, intr_mip) = self.soc.last_lines();
+    pub(crate) fn check(&mut self, rec: &Record) -> Result<(), Mismatch> {
+        let (rtl, mip, intr_mip) = (&rec.retire, rec.mip, rec.intr_mip);
         if rtl.intr {
             self.hart.irq_lines = intr_mip;
             if self.hart.take_interrupt().is_none() {
@@ -178,7 +199,44 @@ impl Lockstep {
         if model != *rtl {
             return Err(Mismatch::Record { rtl: *rtl, model });
         }
+        self.checked += 1;
         Ok(())
+    }
+}
+
+impl Lockstep {
+    /// A fresh SoC and model.
+    pub fn new() -> Self {
+        Self {
+            soc: Soc::new(),
+            checker: Checker::new(),
+        }
+    }
+
+    /// Loads words at `addr` into both.
+    pub fn load(&mut self, addr: u32, words: &[u32]) -> Result<(), crate::soc::LoadError> {
+        self.soc.load_words(addr, words)?;
+        self.checker.load(addr, words);
+        Ok(())
+    }
+
+    /// Loads an RV32 ELF image (see [`crate::soc::elf_segments`]) into both.
+    pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), crate::soc::ElfError> {
+        for (addr, words) in crate::soc::elf_segments(elf)? {
+            self.load(addr, &words)
+                .map_err(crate::soc::ElfError::Segment)?;
+        }
+        Ok(())
+    }
+
+    /// A word of the model's RAM (equal to the RTL's after a clean run).
+    pub fn model_word(&self, addr: u32) -> Option<u32> {
+        ModelBus::ram_index(addr).map(|i| self.checker.bus.ram[i])
+    }
+
+    /// The SoC, for stimulus.
+    pub fn soc_mut(&mut self) -> &mut Soc {
+        &mut self.soc
     }
 
     /// Releases reset and runs until the program exits, `max_retire` instructions retired, or
@@ -190,35 +248,48 @@ impl Lockstep {
         max_cycles: u64,
         stimuli: &[(u64, Stimulus)],
     ) -> Result<Run, Mismatch> {
+        /// Longest batch of cycles between two looks at the records.
+        const BATCH: u64 = 4096;
         self.soc.release();
         let mut events = Vec::new();
         let mut exit = None;
         let mut retired = 0;
-        while retired < max_retire && self.soc.cycle() < max_cycles && exit.is_none() {
-            for (at, s) in stimuli {
+        let mut stimuli: Vec<(u64, Stimulus)> = stimuli.to_vec();
+        stimuli.sort_by_key(|s| s.0);
+        let mut next = 0;
+        'run: while retired < max_retire && self.soc.cycle() < max_cycles && exit.is_none() {
+            while let Some((at, s)) = stimuli.get(next) {
+                if *at > self.soc.cycle() {
+                    break;
+                }
                 if *at == self.soc.cycle() {
                     match s {
                         Stimulus::ExternalIrq(level) => self.soc.set_external_irq(*level),
                     }
                 }
+                next += 1;
             }
-            let (rec, evs) = self.soc.step();
-            if let Some(rec) = rec {
-                self.check(&rec)?;
-                retired += 1;
-            }
+            let until_stimulus = stimuli
+                .get(next)
+                .map_or(u64::MAX, |(at, _)| at - self.soc.cycle());
+            let n = BATCH.min(until_stimulus).min(max_cycles - self.soc.cycle());
+            let (records, evs) = self.soc.batch(n, true, false);
             for e in evs {
-                if let Event::Exit(x) = e {
+                if let Event::Exit(x) = e.value {
                     exit = Some(x);
                 }
-                events.push(Stamped {
-                    cycle: self.soc.cycle(),
-                    value: e,
-                });
+                events.push(e);
+            }
+            for rec in &records {
+                if retired >= max_retire {
+                    break 'run;
+                }
+                self.checker.check(rec)?;
+                retired += 1;
             }
         }
         Ok(Run {
-            hart: self.hart.clone(),
+            hart: self.checker.hart.clone(),
             exit,
             retired,
             cycles: self.soc.cycle(),

@@ -3,8 +3,8 @@
 //! appeared in. Runs are deterministic: the same program and inputs give the same trace.
 
 use crate::golden::Retire;
-use crate::model::{Io, Model};
-use std::collections::VecDeque;
+pub use crate::model::SimError;
+use crate::model::{Model, RawEvent, Record};
 
 /// Core clock of the SoC in Hz (128 clocks per bit at 115200 baud; divisor 8).
 pub const CLOCK_HZ: u32 = 14_745_600;
@@ -18,6 +18,8 @@ pub const CHAR_CYCLES: u64 = (CLOCK_HZ / BAUD) as u64 * 10;
 pub const RAM_BASE: u32 = 0x8000_0000;
 /// RAM size in bytes.
 pub const RAM_SIZE: u32 = 1 << 20;
+/// Size of the frame-grabber window in bytes (`vision::frame::WINDOW_LEN`).
+pub const FRAME_WINDOW_LEN: usize = 0x13_0000;
 
 /// Memory map of the SoC.
 pub mod map {
@@ -28,6 +30,8 @@ pub mod map {
     pub const UART0: u32 = 0x1000_0000;
     pub const UART1: u32 = 0x1000_1000;
     pub const RAM: u32 = super::RAM_BASE;
+    /// Frame-grabber window (`super::FRAME_WINDOW_LEN` bytes; layout in `vision::frame`).
+    pub const FRAME_WINDOW: u32 = 0x8100_0000;
 }
 
 /// PLIC source numbers.
@@ -143,14 +147,41 @@ impl core::fmt::Display for ElfError {
 
 impl std::error::Error for ElfError {}
 
-/// The SoC with its stimulus queues.
+/// Why a frame-window write is refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameError {
+    /// `offset..offset + len` does not lie inside the window of [`FRAME_WINDOW_LEN`] bytes.
+    OutsideWindow { offset: usize, len: usize },
+}
+
+impl core::fmt::Display for FrameError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::OutsideWindow { offset, len } => write!(
+                f,
+                "{len} bytes at window offset {offset:#x} do not fit in {FRAME_WINDOW_LEN:#x} bytes"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for FrameError {}
+
+/// The SoC (a simulator child process) with its stimulus schedule.
+///
+/// # Panics
+///
+/// The methods panic if the simulator process dies or garbles its replies: that is a broken
+/// build or machine, not something a test can recover from. [`Soc::try_new`] reports a
+/// simulator that cannot start.
 #[derive(Debug)]
 pub struct Soc {
     model: Model,
-    io: Io,
     cycle: u64,
-    rx: [VecDeque<u8>; 2],
-    next_rx: [u64; 2],
+    retired: u64,
+    sleep_cycles: u64,
+    /// First cycle each UART's receive line is free again.
+    rx_free: [u64; 2],
     ext_irq: bool,
 }
 
@@ -160,22 +191,39 @@ impl Default for Soc {
     }
 }
 
+fn sim<T>(r: Result<T, SimError>) -> T {
+    match r {
+        Ok(v) => v,
+        Err(e) => panic!("the SoC simulator failed: {e}"),
+    }
+}
+
 impl Soc {
-    /// A SoC held in reset with zeroed RAM.
+    /// A SoC held in reset with zeroed RAM and frame window.
+    ///
+    /// # Panics
+    ///
+    /// If the simulator cannot be started (see [`Soc::try_new`]).
     pub fn new() -> Self {
-        let mut soc = Self {
-            model: Model::new(),
-            io: Io {
-                rst: 1,
-                ..Io::default()
-            },
+        sim(Self::try_new())
+    }
+
+    /// A SoC held in reset with zeroed RAM and frame window, or why the simulator process
+    /// cannot be started.
+    pub fn try_new() -> Result<Self, SimError> {
+        Ok(Self {
+            model: Model::spawn()?,
             cycle: 0,
-            rx: [VecDeque::new(), VecDeque::new()],
-            next_rx: [0; 2],
+            retired: 0,
+            sleep_cycles: 0,
+            rx_free: [0; 2],
             ext_irq: false,
-        };
-        soc.model.run(&mut soc.io, 2, false);
-        soc
+        })
+    }
+
+    /// Process id of the simulator child (it never outlives this handle).
+    pub fn simulator_pid(&self) -> u32 {
+        self.model.pid()
     }
 
     /// Copies `words` into RAM at `addr` (the core stays in reset until [`Soc::release`]).
@@ -188,7 +236,7 @@ impl Soc {
         if addr < RAM_BASE || u64::from(off) + u64::from(len) > u64::from(RAM_SIZE) {
             return Err(LoadError::OutsideRam { addr, len });
         }
-        self.model.load(off / 4, words);
+        sim(self.model.load(off / 4, words));
         Ok(())
     }
 
@@ -209,48 +257,32 @@ impl Soc {
     /// starts zeroed, which covers the segments' zero-filled tails). The entry point must be
     /// [`RAM_BASE`].
     pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), ElfError> {
-        use object::read::elf::{ElfFile32, FileHeader, ProgramHeader};
-        use object::{Architecture, Object};
-        let file = ElfFile32::<object::LittleEndian>::parse(elf)
-            .map_err(|e| ElfError::Parse(e.to_string()))?;
-        if file.architecture() != Architecture::Riscv32 {
-            return Err(ElfError::WrongMachine {
-                architecture: format!("{:?}", file.architecture()),
+        for (addr, words) in elf_segments(elf)? {
+            self.load_words(addr, &words).map_err(ElfError::Segment)?;
+        }
+        Ok(())
+    }
+
+    /// Writes `bytes` into the frame-grabber window (at [`map::FRAME_WINDOW`] + `offset`)
+    /// between two clock cycles: loads from the next cycle on see them. The core may be
+    /// running; the window's reader/writer protocol (docs/camera.md) orders the writes.
+    pub fn write_frame_window(&mut self, offset: usize, bytes: &[u8]) -> Result<(), FrameError> {
+        if offset
+            .checked_add(bytes.len())
+            .is_none_or(|end| end > FRAME_WINDOW_LEN)
+        {
+            return Err(FrameError::OutsideWindow {
+                offset,
+                len: bytes.len(),
             });
         }
-        if file.entry() != u64::from(RAM_BASE) {
-            return Err(ElfError::Entry {
-                entry: file.entry(),
-            });
-        }
-        let endian = file.endian();
-        let headers = file
-            .elf_header()
-            .program_headers(endian, elf)
-            .map_err(|e| ElfError::Parse(e.to_string()))?;
-        for ph in headers {
-            if ph.p_type(endian) != object::elf::PT_LOAD || ph.p_filesz(endian) == 0 {
-                continue;
-            }
-            let addr = ph.p_paddr(endian);
-            let data = ph
-                .data(endian, elf)
-                .map_err(|()| ElfError::Parse("segment data".into()))?;
-            let pad = (addr % 4) as usize;
-            let mut aligned = vec![0u8; pad];
-            aligned.extend_from_slice(data);
-            self.load_bytes(addr - pad as u32, &aligned)
-                .map_err(ElfError::Segment)?;
-        }
+        sim(self.model.write_frame(offset as u32, bytes));
         Ok(())
     }
 
     /// Releases reset: the core starts at [`RAM_BASE`]; cycle 0 is the first clock after.
     pub fn release(&mut self) {
-        // one more clock in reset fetches the first instruction from the loaded image
-        self.io.rst = 1;
-        self.model.run(&mut self.io, 1, false);
-        self.io.rst = 0;
+        sim(self.model.release());
         self.cycle = 0;
     }
 
@@ -261,12 +293,12 @@ impl Soc {
 
     /// Instructions retired since the SoC was created (traps included).
     pub fn retired(&self) -> u64 {
-        self.io.retired
+        self.retired
     }
 
     /// Cycles the core spent asleep in WFI since the SoC was created.
     pub fn sleep_cycles(&self) -> u64 {
-        self.io.sleep_cycles
+        self.sleep_cycles
     }
 
     /// Queues bytes for a UART's receiver; they arrive one character time apart, the first
@@ -278,95 +310,128 @@ impl Soc {
     /// Like [`Soc::send`], but the first byte arrives no earlier than cycle `at`.
     pub fn send_at(&mut self, uart: Uart, at: u64, bytes: &[u8]) {
         let i = uart_index(uart);
-        if self.rx[i].is_empty() {
-            self.next_rx[i] = self.next_rx[i].max(at);
+        for &b in bytes {
+            let t = at.max(self.rx_free[i]).max(self.cycle);
+            sim(self.model.rx(i as u8, t, b));
+            self.rx_free[i] = t + CHAR_CYCLES;
         }
-        self.rx[i].extend(bytes);
     }
 
     /// Drives the test bench's external interrupt line.
     pub fn set_external_irq(&mut self, level: bool) {
-        self.ext_irq = level;
+        if level != self.ext_irq {
+            self.ext_irq = level;
+            sim(self.model.irq(level));
+        }
     }
 
     /// Runs one clock cycle; returns the retirement record and events it produced.
     pub fn step(&mut self) -> (Option<Retire>, Vec<Event>) {
-        self.advance(1, true)
+        let (records, events) = self.batch(1, true, false);
+        (
+            records.first().map(|r| r.retire),
+            events.into_iter().map(|e| e.value).collect(),
+        )
     }
 
-    /// Runs until the first event, a retirement (if `stop_on_retire`), or `max_cycles`.
-    fn advance(&mut self, max_cycles: u64, stop_on_retire: bool) -> (Option<Retire>, Vec<Event>) {
-        self.io.tb_meip = u8::from(self.ext_irq);
-        self.io.uart0_rx_valid = 0;
-        self.io.uart1_rx_valid = 0;
-        for i in 0..2 {
-            if self.next_rx[i] <= self.cycle {
-                if let Some(b) = self.rx[i].pop_front() {
-                    if i == 0 {
-                        self.io.uart0_rx_valid = 1;
-                        self.io.uart0_rx_data = b;
-                    } else {
-                        self.io.uart1_rx_valid = 1;
-                        self.io.uart1_rx_data = b;
-                    }
-                    self.next_rx[i] = self.cycle + CHAR_CYCLES;
-                }
-            }
-        }
-        let mut limit = max_cycles.max(1);
-        for (i, q) in self.rx.iter().enumerate() {
-            if !q.is_empty() {
-                limit = limit.min(self.next_rx[i].saturating_sub(self.cycle).max(1));
-            }
-        }
-        let n = self.model.run(&mut self.io, limit, stop_on_retire);
-        self.cycle += n;
-        let retire = self.io.retire();
-        let mut events = Vec::new();
-        if self.io.uart0_tx_valid != 0 {
-            events.push(Event::Tx {
-                uart: Uart::Lbc,
-                byte: self.io.uart0_tx_data,
-            });
-        }
-        if self.io.uart1_tx_valid != 0 {
-            events.push(Event::Tx {
-                uart: Uart::Radio,
-                byte: self.io.uart1_tx_data,
-            });
-        }
-        if self.io.console_valid != 0 {
-            events.push(Event::Console(self.io.console_data));
-        }
-        if self.io.sim_exit_valid != 0 {
-            events.push(Event::Exit(Exit::decode(self.io.sim_exit_value)));
-        }
-        (retire, events)
+    /// Runs up to `max_cycles` (stopping after an exit, or after the first event when
+    /// `stop_on_event`); returns the RVFI records (if `rvfi`) and the stamped events.
+    pub(crate) fn batch(
+        &mut self,
+        max_cycles: u64,
+        rvfi: bool,
+        stop_on_event: bool,
+    ) -> (Vec<Record>, Vec<Stamped<Event>>) {
+        let b = sim(self.model.run(max_cycles, rvfi, stop_on_event));
+        self.cycle += b.cycles;
+        self.retired = b.retired;
+        self.sleep_cycles = b.sleep_cycles;
+        let events = b
+            .events
+            .into_iter()
+            .map(|(cycle, e)| Stamped {
+                cycle,
+                value: match e {
+                    RawEvent::Uart0Tx(byte) => Event::Tx {
+                        uart: Uart::Lbc,
+                        byte,
+                    },
+                    RawEvent::Uart1Tx(byte) => Event::Tx {
+                        uart: Uart::Radio,
+                        byte,
+                    },
+                    RawEvent::Console(b) => Event::Console(b),
+                    RawEvent::Exit(v) => Event::Exit(Exit::decode(v)),
+                },
+            })
+            .collect();
+        (b.records, events)
     }
 
     /// Runs until the program exits or `max_cycles` have passed; returns every event with its
     /// cycle, ending with the exit if there was one.
     pub fn run(&mut self, max_cycles: u64) -> Vec<Stamped<Event>> {
+        /// Longest batch, so a chatty program's events stay bounded per reply.
+        const BATCH: u64 = 1 << 22;
         let end = self.cycle + max_cycles;
         let mut out = Vec::new();
         while self.cycle < end {
-            let (_, events) = self.advance(end - self.cycle, false);
-            let stop = events.iter().any(|e| matches!(e, Event::Exit(_)));
-            out.extend(events.into_iter().map(|value| Stamped {
-                cycle: self.cycle,
-                value,
-            }));
+            let (_, events) = self.batch((end - self.cycle).min(BATCH), false, false);
+            let stop = events.iter().any(|e| matches!(e.value, Event::Exit(_)));
+            out.extend(events);
             if stop {
                 break;
             }
         }
         out
     }
+}
 
-    /// Last RVFI record's view of the raw port struct (for the lockstep checker).
-    pub(crate) fn last_lines(&self) -> (u8, u8) {
-        (self.io.rvfi_ext_mip, self.io.rvfi_ext_intr_mip)
+/// The PT_LOAD segments of an RV32 ELF image as word-aligned runs of words (file bytes only;
+/// the zero-filled tails are left to zeroed RAM). The entry point must be [`RAM_BASE`].
+pub fn elf_segments(elf: &[u8]) -> Result<Vec<(u32, Vec<u32>)>, ElfError> {
+    use object::read::elf::{ElfFile32, FileHeader, ProgramHeader};
+    use object::{Architecture, Object};
+    let file = ElfFile32::<object::LittleEndian>::parse(elf)
+        .map_err(|e| ElfError::Parse(e.to_string()))?;
+    if file.architecture() != Architecture::Riscv32 {
+        return Err(ElfError::WrongMachine {
+            architecture: format!("{:?}", file.architecture()),
+        });
     }
+    if file.entry() != u64::from(RAM_BASE) {
+        return Err(ElfError::Entry {
+            entry: file.entry(),
+        });
+    }
+    let endian = file.endian();
+    let headers = file
+        .elf_header()
+        .program_headers(endian, elf)
+        .map_err(|e| ElfError::Parse(e.to_string()))?;
+    let mut out = Vec::new();
+    for ph in headers {
+        if ph.p_type(endian) != object::elf::PT_LOAD || ph.p_filesz(endian) == 0 {
+            continue;
+        }
+        let addr = ph.p_paddr(endian);
+        let data = ph
+            .data(endian, elf)
+            .map_err(|()| ElfError::Parse("segment data".into()))?;
+        let pad = (addr % 4) as usize;
+        let mut aligned = vec![0u8; pad];
+        aligned.extend_from_slice(data);
+        let words = aligned
+            .chunks(4)
+            .map(|c| {
+                let mut w = [0u8; 4];
+                w[..c.len()].copy_from_slice(c);
+                u32::from_le_bytes(w)
+            })
+            .collect();
+        out.push((addr - pad as u32, words));
+    }
+    Ok(out)
 }
 
 fn uart_index(uart: Uart) -> usize {

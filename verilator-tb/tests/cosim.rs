@@ -73,3 +73,59 @@ fn read_id_round_trip_through_the_emulated_lbc() {
         cycles_to_us(first)
     );
 }
+
+/// A program echoes what arrives on the radio UART; a byte peer on that UART sends a message
+/// and gets it back, one character time per byte, after the whole message arrived.
+#[test]
+fn radio_uart_talks_to_a_byte_peer() {
+    use verilator_tb::cosim::BytePeer;
+    use verilator_tb::soc::CHAR_CYCLES;
+    let mut p = Prog::new();
+    p.li(S0, map::UART1);
+    p.li(T1, 0x80).i(isa::sb(T1, S0, 3));
+    p.li(T1, 8).i(isa::sb(T1, S0, 0)).i(isa::sb(0, S0, 1));
+    p.li(T1, 3)
+        .i(isa::sb(T1, S0, 3))
+        .li(T1, 7)
+        .i(isa::sb(T1, S0, 2));
+    let top = p.here();
+    p.i(isa::lbu(T1, S0, 5)).i(isa::andi(T1, T1, 1));
+    let here = p.here();
+    p.i(isa::beq(T1, 0, top as i32 - here as i32));
+    p.i(isa::lbu(A0, S0, 0)).i(isa::sb(A0, S0, 0));
+    let here = p.here();
+    p.i(isa::jal(0, top as i32 - here as i32));
+
+    let mut soc = Soc::new();
+    soc.load_words(RAM_BASE, &p.words).unwrap();
+    let mut peer = BytePeer::default();
+    peer.send_at(100, b"radio!");
+    let mut cosim = LbcCosim::new(soc, Lbc::with_memory_eeprom(LbcConfig::default(), CAR_ID))
+        .with_radio(Box::new(peer));
+    let events = cosim.run(20 * CHAR_CYCLES);
+    let echoed: Vec<(u64, u8)> = events
+        .iter()
+        .filter_map(|e| match e.value {
+            Event::Tx {
+                uart: verilator_tb::soc::Uart::Radio,
+                byte,
+            } => Some((e.cycle, byte)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        echoed.iter().map(|e| e.1).collect::<Vec<_>>(),
+        b"radio!",
+        "{echoed:?}"
+    );
+    for w in echoed.windows(2) {
+        assert_eq!(w[1].0 - w[0].0, CHAR_CYCLES, "line-paced echo");
+    }
+    // the first byte is in the receiver at 100 us (a peer's times are when a byte is complete
+    // on the line) and takes one character time to go back out
+    let first = verilator_tb::cosim::us_to_cycles(100) + CHAR_CYCLES;
+    assert!(
+        (first..first + CHAR_CYCLES / 2).contains(&echoed[0].0),
+        "{echoed:?}"
+    );
+}

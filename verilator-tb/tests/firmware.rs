@@ -1,43 +1,314 @@
-//! Boots a `softcore` build of the firmware (path in `VTB_FIRMWARE`) against the emulated LBC:
-//! the banner must name the board and the LBC link must come up. Without `VTB_FIRMWARE` the
-//! test says so and does nothing (the image is built by `cargo xtask fw --board softcore`).
+//! The `softcore` build of the firmware (path in `VTB_FIRMWARE`) on the SoC, co-simulated with
+//! the emulated LBC on UART0 and a radio-mac ground station on UART1: it boots, brings the LBC
+//! up, carries out a MOVE_XY the ground station sends as a console request, and keeps decoding
+//! the LBC's stream frames while the car drives, and runs its vision pipeline on a frame the
+//! harness writes into the frame-grabber window. Every retired instruction is checked against
+//! the golden model (lockstep) on the way. Without `VTB_FIRMWARE` the tests say so and do
+//! nothing (the image is built by `cargo xtask fw --board softcore`).
 use lbc_emu::{Lbc, LbcConfig};
-use qemu_harness::{Level, LineDecoder, LogFormat};
+use lbc_link::{Command, Position, Reply as LbcReply};
+use qemu_harness::{Level, LineDecoder, LogFormat, LogLine};
+use radio_mac::{Address, CarId, Event as RadioEvent, GroundConfig, GroundStation, Key};
+use std::cell::RefCell;
+use std::rc::Rc;
 use std::time::Instant;
-use verilator_tb::cosim::LbcCosim;
-use verilator_tb::soc::{Event, Soc, CLOCK_HZ};
+use ubc_app::program::console::{LbcOutcome, Reply, Request, Status, Tag};
+use ubc_app::program::DEFAULT_KEY;
+use verilator_tb::cosim::{LbcCosim, SerialPeer};
+use verilator_tb::lockstep::Checker;
+use verilator_tb::soc::{Event, Soc, Uart, CLOCK_HZ};
+
+const CAR: u8 = 3;
+/// 10 ms of SoC clock.
+const TEN_MS: u64 = CLOCK_HZ as u64 / 100;
+
+/// A ground station on the radio UART, shared with the test through an `Rc`.
+struct GroundPeer {
+    gs: Rc<RefCell<GroundStation>>,
+    events: Rc<RefCell<Vec<RadioEvent>>>,
+}
+
+impl SerialPeer for GroundPeer {
+    fn receive(&mut self, t_us: u64, byte: u8) {
+        self.gs.borrow_mut().push_rx(t_us, &[byte]);
+    }
+
+    fn advance(&mut self, now_us: u64, out: &mut Vec<(u64, u8)>) {
+        let mut gs = self.gs.borrow_mut();
+        gs.poll(now_us);
+        while let Some(ev) = gs.next_event() {
+            if let RadioEvent::Request(inc) = &ev {
+                if inc.tag == Tag::Notice as u8 {
+                    let _ = gs.reply(inc.id, inc.tag, &[]);
+                    continue;
+                }
+            }
+            self.events.borrow_mut().push(ev);
+        }
+        let mut buf = [0u8; 256];
+        loop {
+            let n = gs.transmit(&mut buf);
+            if n == 0 {
+                break;
+            }
+            out.extend(buf[..n].iter().map(|&b| (now_us, b)));
+        }
+    }
+}
+
+struct Rig {
+    cosim: LbcCosim,
+    format: LogFormat,
+    console: Vec<u8>,
+    lbc_bytes: Vec<u8>,
+    gs: Rc<RefCell<GroundStation>>,
+    radio_events: Rc<RefCell<Vec<RadioEvent>>>,
+}
+
+impl Rig {
+    fn boot() -> Option<Self> {
+        let Some(path) = std::env::var_os("VTB_FIRMWARE") else {
+            eprintln!("VTB_FIRMWARE not set: skipping the firmware test");
+            return None;
+        };
+        let path = std::path::PathBuf::from(path);
+        let elf = std::fs::read(&path).expect("VTB_FIRMWARE is readable");
+        let format = LogFormat::from_elf_bytes(&elf, &path).expect("defmt table");
+        let mut soc = Soc::new();
+        soc.load_elf(&elf).expect("a softcore image");
+        let gs = Rc::new(RefCell::new(GroundStation::new(GroundConfig::new(
+            Key::new(DEFAULT_KEY),
+            1,
+        ))));
+        let radio_events = Rc::new(RefCell::new(Vec::new()));
+        let peer = GroundPeer {
+            gs: Rc::clone(&gs),
+            events: Rc::clone(&radio_events),
+        };
+        let mut checker = Checker::new();
+        checker.load_elf(&elf).expect("a softcore image");
+        let cosim = LbcCosim::new(soc, Lbc::with_memory_eeprom(LbcConfig::default(), CAR))
+            .with_radio(Box::new(peer))
+            .with_checker(checker);
+        Some(Self {
+            cosim,
+            format,
+            console: Vec::new(),
+            lbc_bytes: Vec::new(),
+            gs,
+            radio_events,
+        })
+    }
+
+    fn run(&mut self, cycles: u64) {
+        let events = self.cosim.run(cycles);
+        if let Some(m) = self.cosim.mismatch() {
+            panic!(
+                "lockstep mismatch after {} instructions: {m:x?}",
+                self.cosim.checked()
+            );
+        }
+        for e in events {
+            match e.value {
+                Event::Console(b) => self.console.push(b),
+                Event::Tx {
+                    uart: Uart::Lbc,
+                    byte,
+                } => self.lbc_bytes.push(byte),
+                Event::Exit(x) => panic!("firmware exited: {x:?}\n{:#?}", self.lines()),
+                Event::Tx { .. } => {}
+            }
+        }
+    }
+
+    fn lines(&self) -> Vec<LogLine> {
+        let mut decoder = LineDecoder::new(&self.format);
+        let mut lines = Vec::new();
+        decoder.push(&self.console, Instant::now(), &mut lines);
+        lines
+    }
+
+    /// Runs in 10 ms steps until `done` or `max_ms` simulated milliseconds have passed.
+    fn run_until(&mut self, max_ms: u64, mut done: impl FnMut(&mut Self) -> bool) -> bool {
+        for _ in 0..max_ms / 10 {
+            if done(self) {
+                return true;
+            }
+            self.run(TEN_MS);
+        }
+        done(self)
+    }
+
+    fn lbc_up(&mut self) {
+        let up = self.run_until(2_000, |r| {
+            r.lines().iter().any(|l| l.is(Level::Info, "lbc up"))
+        });
+        let lines = self.lines();
+        assert!(
+            lines.iter().any(|l| l.is(Level::Info, "board=softcore")),
+            "no banner: {lines:#?}"
+        );
+        assert!(up, "{lines:#?}");
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.is(Level::Info, &format!("lbc up: car={CAR}"))),
+            "{lines:#?}"
+        );
+    }
+
+    /// Sends a console request from the ground station and runs until the reply.
+    fn request(&mut self, req: &Request) -> Reply {
+        let mut buf = [0u8; 64];
+        let n = req.encode(&mut buf).expect("encode");
+        let tag = req.tag() as u8;
+        let dst = Address::Car(CarId::new(CAR).expect("car id"));
+        let now = self.cosim.now_us();
+        let h = self
+            .gs
+            .borrow_mut()
+            .command(now, dst, tag, &buf[..n])
+            .expect("ground command");
+        let mut reply = None;
+        self.run_until(3_000, |r| {
+            for ev in r.radio_events.borrow_mut().drain(..) {
+                match ev {
+                    RadioEvent::Reply {
+                        handle,
+                        tag: t,
+                        payload,
+                        ..
+                    } if handle == h => {
+                        reply = Some(Reply::decode(t, &payload).expect("reply decodes"))
+                    }
+                    RadioEvent::Failed { handle, .. } if handle == h => {
+                        panic!("request {tag:#x} failed on the radio")
+                    }
+                    _ => {}
+                }
+            }
+            reply.is_some()
+        });
+        reply.unwrap_or_else(|| panic!("no reply to {req:?}: {:#?}", self.lines()))
+    }
+
+    fn status(&mut self) -> Status {
+        match self.request(&Request::Status) {
+            Reply::Status(s) => s,
+            other => panic!("status: {other:?}"),
+        }
+    }
+}
 
 #[test]
 fn softcore_firmware_boots_and_brings_up_the_lbc() {
-    let Some(path) = std::env::var_os("VTB_FIRMWARE") else {
-        eprintln!("VTB_FIRMWARE not set: skipping the firmware boot test");
-        return;
-    };
-    let path = std::path::PathBuf::from(path);
-    let elf = std::fs::read(&path).expect("VTB_FIRMWARE is readable");
-    let format = LogFormat::from_elf_bytes(&elf, &path).expect("defmt table");
-    let mut soc = Soc::new();
-    soc.load_elf(&elf).expect("a softcore image");
-    let mut cosim = LbcCosim::new(soc, Lbc::with_memory_eeprom(LbcConfig::default(), 3));
-    let mut decoder = LineDecoder::new(&format);
-    let mut lines = Vec::new();
-    // bring-up retries with back-off; 2 simulated seconds are plenty
-    for _ in 0..20 {
-        for e in cosim.run(u64::from(CLOCK_HZ) / 10) {
-            if let Event::Console(b) = e.value {
-                decoder.push(&[b], Instant::now(), &mut lines);
-            }
-        }
-        if lines.iter().any(|l| l.is(Level::Info, "lbc up")) {
-            break;
-        }
-    }
+    let Some(mut rig) = Rig::boot() else { return };
+    rig.lbc_up();
+    assert!(rig.cosim.lbc.streaming());
+    assert!(rig.cosim.lbc.drive_enabled());
+}
+
+#[test]
+fn softcore_firmware_moves_the_car_on_a_console_request() {
+    let Some(mut rig) = Rig::boot() else { return };
+    rig.lbc_up();
+    // a few 30 Hz stream frames
+    rig.run(CLOCK_HZ as u64 / 5);
+    let start = rig.status();
+    assert_eq!(start.car_id, CAR);
+    assert_eq!((start.x, start.y), (300, 400), "start pose from the stream");
+
+    let target = Position::new(320, 480).expect("in range");
+    let sent_before = rig.lbc_bytes.len();
+    let reply = rig.request(&Request::Lbc(Command::MoveXy(target)));
     assert!(
-        lines.iter().any(|l| l.is(Level::Info, "board=softcore")),
-        "no banner: {lines:#?}"
+        matches!(
+            reply,
+            Reply::Lbc(LbcOutcome::Answer(LbcReply::Echo(Command::MoveXy(p)))) if p == target
+        ),
+        "{reply:?}"
     );
+    // the MOVE_XY frame is in the byte log of the LBC link
+    let mut frame = [0u8; 16];
+    let n = Command::MoveXy(target).emit(&mut frame).expect("fits");
     assert!(
-        lines.iter().any(|l| l.is(Level::Info, "lbc up: car=3")),
-        "{lines:#?}"
+        rig.lbc_bytes[sent_before..]
+            .windows(n)
+            .any(|w| w == &frame[..n]),
+        "no MOVE_XY frame among {:02x?}",
+        &rig.lbc_bytes[sent_before..]
+    );
+    // the emulated car drives towards the target and the firmware follows it on the stream
+    let pose0 = rig.cosim.lbc.vehicle().pose();
+    rig.run(CLOCK_HZ as u64 / 2);
+    let pose1 = rig.cosim.lbc.vehicle().pose();
+    assert_ne!(
+        (pose0.x_mm, pose0.y_mm),
+        (pose1.x_mm, pose1.y_mm),
+        "the car moved"
+    );
+    let now = rig.status();
+    assert!(now.y > start.y, "status follows the stream: {now:?}");
+    assert!(now.stream_age_ms < 100, "{now:?}");
+    // every instruction of the session matched the golden model
+    assert!(rig.cosim.checked() > 100_000, "{}", rig.cosim.checked());
+    eprintln!(
+        "{} instructions checked in {} cycles, no mismatch",
+        rig.cosim.checked(),
+        rig.cosim.soc.cycle()
+    );
+}
+
+#[test]
+fn softcore_firmware_sees_a_marker_in_the_frame_window() {
+    use ubc_app::program::console::CameraReport;
+    use verilator_tb::soc::FRAME_WINDOW_LEN;
+    use vision::colour::{Rgb, MARKER_PALETTE};
+    use vision::frame::{FrameWindow, PixelFormat};
+    let Some(mut rig) = Rig::boot() else { return };
+    rig.lbc_up();
+    // a grey 640x480 RGB332 frame with a blue (car 2's colour) 40x60 rectangle
+    let mut window = FrameWindow::init(vec![0u8; FRAME_WINDOW_LEN], 640, 480, PixelFormat::Rgb332)
+        .expect("window layout");
+    let index = window.begin_write();
+    let grey = Rgb::new(128, 128, 128).to_rgb332();
+    let blue = MARKER_PALETTE[2].to_rgb332();
+    for (k, px) in window.buffer_mut(index).iter_mut().enumerate() {
+        let (x, y) = (k % 640, k / 640);
+        *px = if (300..340).contains(&x) && (200..260).contains(&y) {
+            blue
+        } else {
+            grey
+        };
+    }
+    window.publish(index, rig.cosim.now_us());
+    rig.cosim
+        .soc
+        .write_frame_window(0, &window.into_inner())
+        .expect("fits the window");
+    let mut report = None;
+    rig.run_until(2_000, |r| {
+        match r.request(&Request::Camera { blob: 0 }) {
+            Reply::Camera(c) if c.sequence == 1 => report = Some(c),
+            Reply::Camera(_) => {}
+            other => panic!("camera: {other:?}"),
+        }
+        report.is_some()
+    });
+    let report: CameraReport =
+        report.unwrap_or_else(|| panic!("frame 1 never processed: {:#?}", rig.lines()));
+    assert_eq!(report.blobs, 1, "{report:?}");
+    let (i, blob) = report.blob.expect("blob 0 reported");
+    assert_eq!(i, 0);
+    assert_eq!(
+        blob.class,
+        vision::colour::marker_class_for_car(2),
+        "{blob:?}"
+    );
+    assert_eq!(blob.area, 40 * 60, "{blob:?}");
+    assert_eq!(
+        (blob.min_x, blob.min_y, blob.max_x, blob.max_y),
+        (300, 200, 339, 259),
+        "{blob:?}"
     );
 }

@@ -171,8 +171,9 @@ fn exit_codes() {
     }
 }
 
-/// Simulation speed on a busy core (no WFI): `cargo test -p verilator-tb --release --test soc
-/// -- --ignored --nocapture busy_speed`.
+/// Simulation speed on a busy core (no WFI), free-running and in lockstep with the golden
+/// model: `cargo test -p verilator-tb --release --test soc -- --ignored --nocapture
+/// busy_speed`. Prints `figures:` lines that `cargo xtask bench --only softcore` reads.
 #[test]
 #[ignore]
 fn busy_speed() {
@@ -199,4 +200,106 @@ fn busy_speed() {
         cycles as f64 / s / 1e6,
         soc.cycle() as f64 / soc.retired() as f64
     );
+    println!(
+        "figures: mode=busy cycles={cycles} instructions={} wall_s={s:.3}",
+        soc.retired()
+    );
+
+    let mut ls = Lockstep::new();
+    ls.load(RAM_BASE, &p.words).unwrap();
+    let cycles = 4_000_000;
+    let start = std::time::Instant::now();
+    let run = ls
+        .run(u64::MAX, cycles, &[])
+        .unwrap_or_else(|m| panic!("{}", describe(&m)));
+    let s = start.elapsed().as_secs_f64();
+    println!(
+        "lockstep: {} instructions in {s:.2} s: {:.2} M cycles/s",
+        run.retired,
+        run.cycles as f64 / s / 1e6
+    );
+    println!(
+        "figures: mode=busy-lockstep cycles={} instructions={} wall_s={s:.3}",
+        run.cycles, run.retired
+    );
+}
+
+/// The harness writes the frame-grabber window while the core runs; the core polls a word and
+/// echoes each new value to the console, and exits when it reads the last one.
+#[test]
+fn frame_window_is_written_while_the_core_runs() {
+    use verilator_tb::soc::{FrameError, Soc, FRAME_WINDOW_LEN};
+    let last = (FRAME_WINDOW_LEN - 4) as i32;
+    let mut p = Prog::new();
+    p.li(S0, map::FRAME_WINDOW + (last as u32 & !0x7ff))
+        .li(S1, map::SIM_CTRL)
+        .li(A1, 0);
+    let top = p.here();
+    p.i(isa::lbu(A0, S0, last & 0x7ff));
+    let here = p.here();
+    p.i(isa::beq(A0, A1, (top as i32) - (here as i32)));
+    p.i(isa::sw(A0, S1, 4)).i(isa::addi(A1, A0, 0)).li(T1, 3);
+    let here = p.here();
+    p.i(isa::bne(A0, T1, (top as i32) - (here as i32)));
+    p.exit_pass();
+    let mut soc = Soc::new();
+    soc.load_words(RAM_BASE, &p.words).unwrap();
+    soc.release();
+    let mut console = Vec::new();
+    for v in 1..=3u8 {
+        assert!(soc.run(500).is_empty(), "nothing before the write");
+        soc.write_frame_window(FRAME_WINDOW_LEN - 4, &[v, 0xee, 0xee, 0xee])
+            .unwrap();
+        for e in soc.run(100) {
+            match e.value {
+                Event::Console(b) => console.push(b),
+                Event::Exit(x) => assert_eq!(x, Exit::Pass),
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+    assert_eq!(console, [1, 2, 3]);
+    assert_eq!(
+        soc.write_frame_window(FRAME_WINDOW_LEN - 3, &[0; 4]),
+        Err(FrameError::OutsideWindow {
+            offset: FRAME_WINDOW_LEN - 3,
+            len: 4
+        })
+    );
+    assert!(soc.write_frame_window(usize::MAX, &[0]).is_err());
+}
+
+/// The simulator child process ends with its handle.
+#[test]
+fn simulator_process_ends_with_the_soc() {
+    let soc = verilator_tb::soc::Soc::new();
+    let proc_dir = std::path::PathBuf::from(format!("/proc/{}", soc.simulator_pid()));
+    assert!(proc_dir.exists());
+    drop(soc);
+    assert!(!proc_dir.exists(), "child still there after drop");
+}
+
+/// End of input ends the simulator by itself (a harness that goes away without killing it
+/// leaves nothing behind).
+#[test]
+fn simulator_process_ends_at_end_of_input() {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("VTB_SIM_EXE"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("vtb-sim starts");
+    drop(child.stdin.take());
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            assert!(status.success(), "{status}");
+            break;
+        }
+        if start.elapsed() > std::time::Duration::from_secs(10) {
+            let _ = child.kill();
+            panic!("vtb-sim still running after its input closed");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
 }

@@ -1,5 +1,6 @@
 //! Runs a firmware ELF on the Verilated SoC: prints the defmt console (decoded with the ELF's
 //! table) and the UART output, then the exit, cycle count, CPI and simulation speed.
+#![forbid(unsafe_code)]
 
 use clap::Parser;
 use lbc_emu::{Lbc, LbcConfig};
@@ -8,6 +9,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 use verilator_tb::cosim::LbcCosim;
+use verilator_tb::lockstep::Lockstep;
 use verilator_tb::soc::{Event, Exit, Soc, Uart, CLOCK_HZ};
 
 #[derive(Debug, Parser)]
@@ -24,6 +26,44 @@ struct Args {
     /// Attach an emulated lower board with this car ID to the LBC UART.
     #[arg(long)]
     lbc_emu: Option<u8>,
+    /// Check every retired instruction against the golden model instead (no UART peers).
+    #[arg(long, conflicts_with_all = ["lbc_emu", "lbc_hex"])]
+    lockstep: bool,
+}
+
+/// Runs the image in lockstep with the golden model.
+fn lockstep(elf: &[u8], max_cycles: u64) -> ExitCode {
+    let mut ls = Lockstep::new();
+    if let Err(e) = ls.load_elf(elf) {
+        eprintln!("{e}");
+        return ExitCode::from(2);
+    }
+    let start = Instant::now();
+    let result = ls.run(u64::MAX, max_cycles, &[]);
+    let wall = start.elapsed().as_secs_f64();
+    match result {
+        Ok(run) => {
+            println!(
+                "lockstep: {} instructions checked in {} cycles, 0 mismatches, exit {:?}; \
+                 {:.2} M cycles/s, {:.2} M instructions/s ({wall:.2} s wall)",
+                run.retired,
+                run.cycles,
+                run.exit,
+                run.cycles as f64 / wall / 1e6,
+                run.retired as f64 / wall / 1e6,
+            );
+            println!(
+                "figures: mode=lockstep cycles={} instructions={} wall_s={wall:.3} mismatches=0",
+                run.cycles, run.retired
+            );
+            ExitCode::SUCCESS
+        }
+        Err(m) => {
+            println!("lockstep mismatch: {m:x?}");
+            println!("figures: mode=lockstep mismatches=1");
+            ExitCode::from(4)
+        }
+    }
 }
 
 fn parse_hex(s: &str) -> Option<Vec<u8>> {
@@ -52,6 +92,9 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if args.lockstep {
+        return lockstep(&bytes, args.max_cycles);
+    }
     let mut soc = Soc::new();
     if let Err(e) = soc.load_elf(&bytes) {
         eprintln!("{}: {e}", args.elf.display());
@@ -102,6 +145,14 @@ fn main() -> ExitCode {
         awake as f64 / retired.max(1) as f64,
         cycles as f64 / wall / 1e6,
         wall
+    );
+    println!(
+        "figures: mode={} cycles={cycles} instructions={retired} awake={awake} wall_s={wall:.3}",
+        if args.lbc_emu.is_some() {
+            "cosim"
+        } else {
+            "free"
+        }
     );
     match exit {
         Some(Exit::Pass) => ExitCode::SUCCESS,
