@@ -3,6 +3,7 @@
 use heapless::Vec;
 
 use crate::drive::{Drive, DriveConfig, Sv, STEER_LIMIT};
+use crate::fmath::{cos, round};
 use crate::geom::{clampf, mrad_to_rad, Vec2};
 use crate::safety::{field, gate, Conflict, Obstacle, SafetyConfig};
 use crate::{
@@ -43,6 +44,8 @@ pub struct ControllerConfig {
 #[derive(Debug, Clone, PartialEq)]
 enum Active {
     Idle,
+    /// Stand still (the law is carried out outside the controller, e.g. camera follow).
+    Hold,
     Formation(Formation),
     Rendezvous(Rendezvous),
     Circle(Circle),
@@ -129,6 +132,7 @@ impl Controller {
                 let (x, y) = self.clamp(x, y);
                 Active::GoTo(GoTo::new(x, y, speed_mm_s))
             }
+            ManeuverParams::CameraFollow { .. } => Active::Hold,
         };
         self.drive = Drive::default();
         self.escape = None;
@@ -147,7 +151,7 @@ impl Controller {
             .safety
             .clamp_goal(Vec2::new(f32::from(x), f32::from(y)));
         // Clamped inside the arena: the casts are exact.
-        (libm::roundf(p.x) as u16, libm::roundf(p.y) as u16)
+        (round(p.x) as u16, round(p.y) as u16)
     }
 
     /// Next waypoint of a formation leader (ignored by other laws and by followers); moved
@@ -181,6 +185,12 @@ impl Controller {
             Active::Idle => Plan {
                 guidance: Guidance::Hold,
                 phase: Phase::Idle,
+                converged: false,
+                error_units: 0.0,
+            },
+            Active::Hold => Plan {
+                guidance: Guidance::Hold,
+                phase: Phase::Hold,
                 converged: false,
                 error_units: 0.0,
             },
@@ -316,8 +326,8 @@ impl Controller {
                 // The clamp keeps both inside the arena, so the casts are exact.
                 return (
                     Command::MoveXy {
-                        x: libm::roundf(at.x) as u16,
-                        y: libm::roundf(at.y) as u16,
+                        x: round(at.x) as u16,
+                        y: round(at.y) as u16,
                     },
                     false,
                 );
@@ -349,18 +359,37 @@ impl Controller {
                 velocity: -reverse,
             },
         ];
+        // Without a way forward, priority goes to the lower ID: a car blocked by a lower-ID car
+        // makes room (the safe move that most increases the distance to it, kept for a while);
+        // the lower-ID car, or a car blocked by a wall, holds still. One pass over the
+        // candidates scores both.
+        let yield_to = match refused {
+            Err(Conflict::Car(id)) if id < me.id => fresh.iter().find(|n| n.id == id),
+            _ => None,
+        };
+        let other = yield_to.map(|o| {
+            let nb = o.at(safety.horizon_s);
+            (nb, (nb - safety.body(me.pos, me.heading)).norm())
+        });
         let psi = v.angle();
-        let align_now = libm::cosf(psi - me.heading);
+        let align_now = cos(psi - me.heading);
         let mut best: Option<(f32, Sv)> = None;
+        let mut room: Option<(f32, Sv)> = None;
         for c in candidates {
             if gate(safety, me, fresh, c).is_err() {
                 continue;
             }
             let (p, h) = crate::drive::predict(me.pos, me.heading, c, safety.horizon_s);
             let score =
-                (p - me.pos).dot(v.unit()) + ALIGN_WEIGHT_UNITS * (libm::cosf(psi - h) - align_now);
+                (p - me.pos).dot(v.unit()) + ALIGN_WEIGHT_UNITS * (cos(psi - h) - align_now);
             if score > 0.0 && best.is_none_or(|(s, _)| score > s) {
                 best = Some((score, c));
+            }
+            if let Some((nb, d0)) = other {
+                let gain = (nb - safety.body(p, h)).norm() - d0;
+                if gain > 0.5 && room.is_none_or(|(g, _)| gain > g) {
+                    room = Some((gain, c));
+                }
             }
         }
         if let Some((_, c)) = best {
@@ -371,32 +400,9 @@ impl Controller {
             }
             return (to_command(c), true);
         }
-        // No way forward. Priority to the lower ID: a car blocked by a lower-ID car makes
-        // room (the safe move that most increases the distance to it, kept for a while);
-        // the lower-ID car, or a car blocked by a wall, holds still.
-        let yield_to = match refused {
-            Err(Conflict::Car(id)) if id < me.id => fresh.iter().find(|n| n.id == id),
-            _ => None,
-        };
-        if let Some(other) = yield_to {
-            let b0 = safety.body(me.pos, me.heading);
-            let nb = other.at(safety.horizon_s);
-            let d0 = (nb - b0).norm();
-            let mut best: Option<(f32, Sv)> = None;
-            for c in candidates {
-                if gate(safety, me, fresh, c).is_err() {
-                    continue;
-                }
-                let (p, h) = crate::drive::predict(me.pos, me.heading, c, safety.horizon_s);
-                let gain = (nb - safety.body(p, h)).norm() - d0;
-                if gain > 0.5 && best.is_none_or(|(g, _)| gain > g) {
-                    best = Some((gain, c));
-                }
-            }
-            if let Some((_, c)) = best {
-                self.escape = Some((ESCAPE_PERIODS, c));
-                return (to_command(c), true);
-            }
+        if let Some((_, c)) = room {
+            self.escape = Some((ESCAPE_PERIODS, c));
+            return (to_command(c), true);
         }
         (Command::Stop, true)
     }
@@ -407,8 +413,8 @@ fn to_command(sv: Sv) -> Command {
     let lim = f32::from(STEER_LIMIT_MRAD);
     Command::MoveSv {
         // Both clamped into i16 range first, so the casts are exact.
-        steering_mrad: libm::roundf(clampf(sv.steering * 1000.0, -lim, lim)) as i16,
-        velocity_mm_s: libm::roundf(clampf(sv.velocity, -MAX_SV_MM_S, MAX_SV_MM_S)) as i16,
+        steering_mrad: round(clampf(sv.steering * 1000.0, -lim, lim)) as i16,
+        velocity_mm_s: round(clampf(sv.velocity, -MAX_SV_MM_S, MAX_SV_MM_S)) as i16,
     }
 }
 
@@ -441,6 +447,19 @@ mod tests {
         let out = c.step(&inputs(pose(300, 400, 0), &[]));
         assert_eq!(out.command, Command::Stop);
         assert_eq!(out.status.phase, Phase::Idle);
+    }
+
+    #[test]
+    fn camera_follow_holds() {
+        let mut c = Controller::new(ControllerConfig::default());
+        c.start(ManeuverParams::CameraFollow {
+            marker: 1,
+            distance_units: 80,
+            speed_mm_s: 200,
+        });
+        let out = c.step(&inputs(pose(300, 400, 0), &[]));
+        assert_eq!(out.command, Command::Stop);
+        assert_eq!(out.status.phase, Phase::Hold);
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //! desired direction more than [`REVERSE_ABOVE`] behind the car is driven in reverse, with
 //! hysteresis so the mode does not chatter.
 
+use crate::fmath::{atan, cos, sin_cos, tan};
 use crate::geom::{clampf, wrap, Vec2};
 use crate::{MM_PER_UNIT, WHEELBASE_MM};
 
@@ -63,7 +64,7 @@ pub fn steering_for(yaw_rate: f32, velocity: f32) -> f32 {
         return 0.0;
     }
     clampf(
-        libm::atanf(WHEELBASE_MM * yaw_rate / velocity),
+        atan(WHEELBASE_MM * yaw_rate / velocity),
         -STEER_LIMIT,
         STEER_LIMIT,
     )
@@ -98,7 +99,7 @@ impl Drive {
         } else {
             (e_fwd, 1.0, cfg.max_mm_s)
         };
-        let along = speed * libm::cosf(e);
+        let along = speed * cos(e);
         let v = sign * clampf(along.max(cfg.creep_mm_s.min(speed)), 0.0, max);
         Sv {
             steering: steering_for(cfg.heading_gain * e, v),
@@ -110,16 +111,15 @@ impl Drive {
 /// Rear-axle position (tracking units) and heading (rad) after driving `sv` for `t` seconds.
 pub fn predict(pos: Vec2, heading: f32, sv: Sv, t: f32) -> (Vec2, f32) {
     let s = sv.velocity * t / MM_PER_UNIT;
-    let k = libm::tanf(sv.steering) / (WHEELBASE_MM / MM_PER_UNIT);
+    let k = tan(sv.steering) / (WHEELBASE_MM / MM_PER_UNIT);
     let turn = k * s;
     if turn.abs() < 1e-3 {
         return (pos + Vec2::from_angle(heading) * s, heading);
     }
     let h1 = heading + turn;
-    let d = Vec2::new(
-        (libm::sinf(h1) - libm::sinf(heading)) / k,
-        (libm::cosf(heading) - libm::cosf(h1)) / k,
-    );
+    let (s0, c0) = sin_cos(heading);
+    let (s1, c1) = sin_cos(h1);
+    let d = Vec2::new((s1 - s0) / k, (c0 - c1) / k);
     (pos + d, h1)
 }
 
@@ -179,7 +179,7 @@ mod tests {
     #[test]
     fn predict_arc_quarter_circle() {
         // Full left lock: radius = 80 mm / tan(0.523) = 138.7 mm = 55.5 units.
-        let r = 32.0 / libm::tanf(STEER_LIMIT);
+        let r = 32.0 / tan(STEER_LIMIT);
         let sv = Sv {
             steering: STEER_LIMIT,
             velocity: 100.0,

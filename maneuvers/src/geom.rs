@@ -1,8 +1,15 @@
-//! Small plane-geometry helpers on `f32` (tracking units, radians), using `libm` so that the
-//! same code runs on the FPU-less firmware and on the host.
+//! Small plane-geometry helpers on `f32` (tracking units, radians), using [`crate::fmath`] so
+//! that the same compact code runs on the FPU-less firmware and on the host.
 
-use core::f32::consts::{PI, TAU};
+use core::f32::consts::TAU;
 use core::ops::{Add, Mul, Neg, Sub};
+
+use crate::fmath::{atan2, round, sin_cos, sqrt};
+
+// The small arithmetic helpers below are kept out of line (`#[inline(never)]`): on the
+// FPU-less firmware every `f32` operation is already a call into `compiler_builtins`, and
+// inlining the helpers at each of their many uses costs more code than calling them
+// (measured: 1.2 KiB of firmware text).
 
 /// A 2-D vector (a position in tracking units or a velocity in mm/s, as documented at each use).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -24,22 +31,24 @@ impl Vec2 {
 
     /// Unit vector at `angle` rad from +X.
     pub fn from_angle(angle: f32) -> Self {
-        Self::new(libm::cosf(angle), libm::sinf(angle))
+        let (s, c) = sin_cos(angle);
+        Self::new(c, s)
     }
 
     /// Euclidean length.
     pub fn norm(self) -> f32 {
-        libm::sqrtf(self.x * self.x + self.y * self.y)
+        sqrt(self.x * self.x + self.y * self.y)
     }
 
     /// Dot product.
+    #[inline(never)]
     pub fn dot(self, o: Vec2) -> f32 {
         self.x * o.x + self.y * o.y
     }
 
     /// Direction, rad in -pi..=pi (0 for the zero vector).
     pub fn angle(self) -> f32 {
-        libm::atan2f(self.y, self.x)
+        atan2(self.y, self.x)
     }
 
     /// Rotated by +90 degrees (counter-clockwise).
@@ -70,6 +79,7 @@ impl Vec2 {
 
 impl Add for Vec2 {
     type Output = Vec2;
+    #[inline(never)]
     fn add(self, o: Vec2) -> Vec2 {
         Vec2::new(self.x + o.x, self.y + o.y)
     }
@@ -77,6 +87,7 @@ impl Add for Vec2 {
 
 impl Sub for Vec2 {
     type Output = Vec2;
+    #[inline(never)]
     fn sub(self, o: Vec2) -> Vec2 {
         Vec2::new(self.x - o.x, self.y - o.y)
     }
@@ -84,6 +95,7 @@ impl Sub for Vec2 {
 
 impl Mul<f32> for Vec2 {
     type Output = Vec2;
+    #[inline(never)]
     fn mul(self, k: f32) -> Vec2 {
         Vec2::new(self.x * k, self.y * k)
     }
@@ -96,13 +108,11 @@ impl Neg for Vec2 {
     }
 }
 
-/// Angle wrapped into -pi..=pi.
+/// Angle wrapped into -pi..=pi (within `f32` rounding), for angles of up to a few
+/// thousand turns.
+#[inline(never)]
 pub fn wrap(a: f32) -> f32 {
-    let mut a = libm::fmodf(a + PI, TAU);
-    if a < 0.0 {
-        a += TAU;
-    }
-    a - PI
+    a - round(a * (1.0 / TAU)) * TAU
 }
 
 /// Heading in mrad (0..=6283) to rad.
@@ -112,13 +122,14 @@ pub fn mrad_to_rad(mrad: u16) -> f32 {
 
 /// Rad to heading in mrad, 0..=6283.
 pub fn rad_to_mrad(rad: f32) -> u16 {
-    let a = libm::fmodf(rad, TAU);
+    let a = wrap(rad);
     let a = if a < 0.0 { a + TAU } else { a };
     // `as` saturates; the wrap keeps it within 0..=6283.
-    (libm::roundf(a * 1000.0) as u16).min(6283)
+    (round(a * 1000.0) as u16).min(6283)
 }
 
 /// Clamp a float into `lo..=hi` (NaN gives `lo`).
+#[inline(never)]
 pub fn clampf(v: f32, lo: f32, hi: f32) -> f32 {
     if v.is_nan() {
         lo
@@ -130,6 +141,7 @@ pub fn clampf(v: f32, lo: f32, hi: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use core::f32::consts::PI;
 
     #[test]
     fn wrap_keeps_angles_in_range() {

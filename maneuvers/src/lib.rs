@@ -13,8 +13,9 @@
 //!
 //! Units are the project's: X/Y in tracking units of 2.5 mm (arena X 0..=600, Y 0..=800),
 //! heading in mrad counter-clockwise from +X, steering in signed mrad (+ = left, limit +/-523),
-//! velocity in signed mm/s, time in microseconds. Internally the laws use `f32` with `libm`;
-//! everything is deterministic and free of heap and `unsafe`.
+//! velocity in signed mm/s, time in microseconds. Internally the laws use `f32` with the
+//! compact functions of [`fmath`] (no `f64`, no `libm`, so the FPU-less firmware stays
+//! small); everything is deterministic and free of heap and `unsafe`.
 
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
@@ -23,6 +24,7 @@
 pub mod circle;
 pub mod controller;
 pub mod drive;
+pub mod fmath;
 pub mod formation;
 pub mod geom;
 pub mod goto;

@@ -61,6 +61,16 @@ pub enum ManeuverParams {
         /// Maximum speed, mm/s, 0..=2047.
         speed_mm_s: u16,
     },
+    /// Follow the car carrying a marker seen by the camera. The camera part of the program
+    /// drives the car; the [`crate::Controller`] itself holds still for this law.
+    CameraFollow {
+        /// Vision colour class index of the leader's marker, 0..=255.
+        marker: u8,
+        /// Distance to keep behind the leader, tracking units, 1..=511.
+        distance_units: u16,
+        /// Maximum speed, mm/s, 0..=2047.
+        speed_mm_s: u16,
+    },
 }
 
 /// A parameter field, named in errors.
@@ -81,6 +91,10 @@ pub enum ParamField {
     X,
     /// A Y coordinate.
     Y,
+    /// Camera-follow distance.
+    Distance,
+    /// Camera-follow marker class.
+    Marker,
 }
 
 /// Why parameters cannot be encoded.
@@ -124,6 +138,7 @@ const KIND_FORMATION: u64 = 1;
 const KIND_RENDEZVOUS: u64 = 2;
 const KIND_CIRCLE: u64 = 3;
 const KIND_GOTO: u64 = 4;
+const KIND_CAMERA_FOLLOW: u64 = 5;
 
 /// Packs fields LSB first into a 48-bit word.
 struct Packer {
@@ -218,7 +233,23 @@ impl ManeuverParams {
                 check(radius_units >= 1, ParamField::Radius)
             }
             ManeuverParams::GoTo { .. } => Ok(()),
+            ManeuverParams::CameraFollow { distance_units, .. } => {
+                check(distance_units >= 1, ParamField::Distance)
+            }
         }
+    }
+
+    /// The law selector of the wire form (the low 3 bits): 0 idle, 1 formation,
+    /// 2 rendezvous, 3 circle, 4 go-to, 5 camera follow.
+    pub const fn kind(&self) -> u8 {
+        (match self {
+            ManeuverParams::Idle => KIND_IDLE,
+            ManeuverParams::Formation { .. } => KIND_FORMATION,
+            ManeuverParams::Rendezvous { .. } => KIND_RENDEZVOUS,
+            ManeuverParams::Circle { .. } => KIND_CIRCLE,
+            ManeuverParams::GoTo { .. } => KIND_GOTO,
+            ManeuverParams::CameraFollow { .. } => KIND_CAMERA_FOLLOW,
+        }) as u8
     }
 
     /// The 6-byte wire form.
@@ -258,6 +289,14 @@ impl ManeuverParams {
             ManeuverParams::GoTo { x, y, speed_mm_s } => Packer::new(KIND_GOTO)
                 .put(u64::from(x), 10, ParamField::X)?
                 .put(u64::from(y), 10, ParamField::Y)?
+                .put(u64::from(speed_mm_s), 11, ParamField::Speed)?,
+            ManeuverParams::CameraFollow {
+                marker,
+                distance_units,
+                speed_mm_s,
+            } => Packer::new(KIND_CAMERA_FOLLOW)
+                .put(u64::from(marker), 8, ParamField::Marker)?
+                .put(u64::from(distance_units), 9, ParamField::Distance)?
                 .put(u64::from(speed_mm_s), 11, ParamField::Speed)?,
         };
         let b = p.word.to_le_bytes();
@@ -315,6 +354,11 @@ impl ManeuverParams {
                 y: u.take(10) as u16,
                 speed_mm_s: u.take(11) as u16,
             },
+            KIND_CAMERA_FOLLOW => ManeuverParams::CameraFollow {
+                marker: u.take(8) as u8,
+                distance_units: u.take(9) as u16,
+                speed_mm_s: u.take(11) as u16,
+            },
             other => return Err(DecodeError::UnknownKind { kind: other as u8 }),
         };
         u.finish()?;
@@ -360,6 +404,32 @@ mod tests {
     }
 
     #[test]
+    fn camera_follow_bytes() {
+        let p = ManeuverParams::CameraFollow {
+            marker: 2,
+            distance_units: 80,
+            speed_mm_s: 150,
+        };
+        // kind 5 | marker 2 << 3 | distance 80 << 11 | speed 150 << 20
+        let word: u64 = 5 | (2 << 3) | (80 << 11) | (150 << 20);
+        assert_eq!(p.encode().unwrap(), &word.to_le_bytes()[..6]);
+        assert_eq!(p.encode().unwrap(), [0x15, 0x80, 0x62, 0x09, 0x00, 0x00]);
+        assert_eq!(ManeuverParams::decode(&word.to_le_bytes()[..6]), Ok(p));
+        assert_eq!(p.kind(), 5);
+        assert_eq!(
+            ManeuverParams::CameraFollow {
+                marker: 0,
+                distance_units: 0,
+                speed_mm_s: 0
+            }
+            .encode(),
+            Err(EncodeError::FieldOutOfRange {
+                field: ParamField::Distance
+            })
+        );
+    }
+
+    #[test]
     fn idle_is_all_zero() {
         assert_eq!(ManeuverParams::Idle.encode().unwrap(), [0; 6]);
         assert_eq!(ManeuverParams::decode(&[0; 6]), Ok(ManeuverParams::Idle));
@@ -375,8 +445,8 @@ mod tests {
             })
         );
         assert_eq!(
-            ManeuverParams::decode(&[7, 0, 0, 0, 0, 0]),
-            Err(DecodeError::UnknownKind { kind: 7 })
+            ManeuverParams::decode(&[6, 0, 0, 0, 0, 0]),
+            Err(DecodeError::UnknownKind { kind: 6 })
         );
         assert_eq!(
             ManeuverParams::decode(&[0, 0, 0, 0, 0, 0x80]),
@@ -449,6 +519,15 @@ mod tests {
             ),
             (0u16..1024, 0u16..1024, 0u16..2048)
                 .prop_map(|(x, y, speed_mm_s)| ManeuverParams::GoTo { x, y, speed_mm_s }),
+            (any::<u8>(), 1u16..512, 0u16..2048).prop_map(
+                |(marker, distance_units, speed_mm_s)| {
+                    ManeuverParams::CameraFollow {
+                        marker,
+                        distance_units,
+                        speed_mm_s,
+                    }
+                }
+            ),
         ]
     }
 
