@@ -5,6 +5,7 @@ use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use crate::shared_ram::SharedRamSpec;
 use crate::spec::{SocketSpec, UartAttach};
 
 /// Chardev id of the LBC link (the board's built-in NS16550A, `-serial`).
@@ -36,6 +37,8 @@ pub struct QemuConfig {
     /// Have the kernel kill QEMU if the spawning thread dies (`setpriv --pdeathsig`),
     /// so not even a killed test process leaves it behind.
     pub kill_with_parent: bool,
+    /// Guest RAM as a shared host file (the frame grabber's window); `None`: QEMU's own RAM.
+    pub shared_ram: Option<SharedRamSpec>,
 }
 
 impl QemuConfig {
@@ -51,6 +54,7 @@ impl QemuConfig {
             extra_args: Vec::new(),
             connect_timeout: Duration::from_secs(10),
             kill_with_parent: true,
+            shared_ram: None,
         }
     }
 
@@ -98,6 +102,20 @@ impl QemuConfig {
                 args.push("-device".into());
                 args.push(format!("pci-serial,chardev={id}").into());
             }
+        }
+        if let Some(ram) = &self.shared_ram {
+            let mut backend = OsString::from(format!(
+                "memory-backend-file,id=ram0,size={}M,mem-path=",
+                ram.mib
+            ));
+            backend.push(escape_opt(ram.path.as_os_str()));
+            backend.push(",share=on");
+            args.push("-m".into());
+            args.push(format!("{}M", ram.mib).into());
+            args.push("-object".into());
+            args.push(backend);
+            args.push("-machine".into());
+            args.push("memory-backend=ram0".into());
         }
         if let Some(shift) = self.icount_shift {
             args.push("-icount".into());
@@ -201,6 +219,13 @@ impl QemuBuilder {
         self
     }
 
+    /// Back the guest RAM with a shared file the host can write (the frame grabber's window);
+    /// the file is created and sized when QEMU is spawned, and left in place afterwards.
+    pub fn shared_ram(mut self, ram: SharedRamSpec) -> Self {
+        self.config.shared_ram = Some(ram);
+        self
+    }
+
     /// Bound on retrying the socket connections after QEMU starts.
     pub fn connect_timeout(mut self, timeout: Duration) -> Self {
         self.config.connect_timeout = timeout;
@@ -296,6 +321,24 @@ mod tests {
                 "-icount",
                 "shift=4",
                 "-s",
+            ]
+        );
+
+        let ram = QemuBuilder::new("fw.elf")
+            .shared_ram(SharedRamSpec::new("/run/car 1,ram"))
+            .config()
+            .clone();
+        let args = strings(&ram.args(Path::new("/d")));
+        let tail: Vec<&str> = args[args.len() - 6..].iter().map(String::as_str).collect();
+        assert_eq!(
+            tail,
+            [
+                "-m",
+                "32M",
+                "-object",
+                "memory-backend-file,id=ram0,size=32M,mem-path=/run/car 1,,ram,share=on",
+                "-machine",
+                "memory-backend=ram0",
             ]
         );
 

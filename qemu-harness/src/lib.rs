@@ -25,6 +25,7 @@ mod error;
 mod firmware;
 mod log;
 mod qemu;
+mod shared_ram;
 mod spec;
 mod uart;
 
@@ -36,6 +37,7 @@ pub use firmware::{
 };
 pub use log::{Level, LineDecoder, Log, LogFormat, LogLine, DEFAULT_LOG_CAPACITY};
 pub use qemu::Qemu;
+pub use shared_ram::{SharedRam, SharedRamSpec, FRAME_WINDOW_OFFSET, RAM_BASE, SHARED_RAM_MIB};
 pub use spec::{SocketSpec, SocketSpecError, UartAttach};
 pub use uart::{Uart, DEFAULT_WRITE_TIMEOUT};
 

@@ -51,6 +51,12 @@ impl Qemu {
             Some(path) => path.clone(),
             None => find_qemu()?,
         };
+        if let Some(ram) = &config.shared_ram {
+            crate::SharedRam::create(&ram.path, ram.len()).map_err(|source| Error::Io {
+                action: "creating the shared RAM file",
+                source,
+            })?;
+        }
         let sock_dir = tempfile::Builder::new()
             .prefix("ubc-qemu-")
             .tempdir()

@@ -17,6 +17,7 @@ pub mod boards;
 pub mod clint;
 pub mod cpu;
 pub mod exit;
+pub mod framegrabber;
 #[cfg(all(
     any(feature = "logger", feature = "console-logger"),
     target_arch = "riscv32"

@@ -8,9 +8,9 @@
 use crate::colour::BACKGROUND;
 
 /// Most runs kept for one row; further runs in that row are dropped (and counted).
-pub const MAX_RUNS_PER_ROW: usize = 128;
+pub const MAX_RUNS_PER_ROW: usize = 64;
 /// Most labels per frame; runs that need a new label past this are dropped (and counted).
-pub const MAX_LABELS: usize = 1024;
+pub const MAX_LABELS: usize = 256;
 /// Most blobs reported per frame (the largest are kept).
 pub const MAX_BLOBS: usize = 32;
 
@@ -127,7 +127,8 @@ struct LabelledRun {
     label: u16,
 }
 
-/// Connected-component state; reusable across frames, about 29 KiB.
+/// Connected-component state; reusable across frames, about 7.7 KiB (small enough for the
+/// firmware's stack).
 #[derive(Debug, Clone)]
 pub struct BlobDetector {
     parent: [u16; MAX_LABELS],
@@ -335,7 +336,7 @@ mod tests {
     #[test]
     fn detector_state_size_is_as_documented() {
         let size = core::mem::size_of::<BlobDetector>();
-        assert!((28 * 1024..30 * 1024).contains(&size), "{size}");
+        assert!((7 * 1024..8 * 1024).contains(&size), "{size}");
     }
 
     #[test]
@@ -391,10 +392,12 @@ mod tests {
             d.push_row(y, &runs);
         }
         let det = d.finish(1);
-        assert_eq!(det.dropped.runs, 10 * 72);
-        assert_eq!(det.dropped.unlabelled_runs, 10 * 128 - 1024);
+        let rows = 10u32;
+        let kept = MAX_RUNS_PER_ROW as u32;
+        assert_eq!(det.dropped.runs, rows * (200 - kept));
+        assert_eq!(det.dropped.unlabelled_runs, rows * kept - MAX_LABELS as u32);
         assert_eq!(det.blobs().len(), MAX_BLOBS);
-        assert_eq!(det.dropped.blobs, 1024 - MAX_BLOBS as u32);
+        assert_eq!(det.dropped.blobs, (MAX_LABELS - MAX_BLOBS) as u32);
     }
 
     #[test]

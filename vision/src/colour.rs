@@ -1,12 +1,15 @@
-//! Colour classes: a 256-entry table from an RGB332 pixel to a class (0 = background), and a
-//! 64 KiB pair table that classifies two adjacent pixels with one lookup (the class when both
-//! agree, [`MIXED`] otherwise). Both are built at compile time by `const fn`, so firmware keeps
-//! them in read-only memory.
+//! Colour classes: a 256-entry table from an RGB332 pixel to a class (0 = background), built at
+//! compile time by `const fn` so firmware keeps it in read-only memory, and a word test that lets
+//! the row scan skip four background pixels with a few ALU instructions.
+//!
+//! The word test relies on markers being saturated colours: every marker code has a channel with
+//! its top two bits set ("high") and a channel with its top bit clear ("low"). A word whose four
+//! pixels have no high channel at all (floor, dark backdrop, car bodies) or no low channel at all
+//! (white walls) holds no marker pixel. [`ColourClasses::from_table`] checks the property for its
+//! table; a table that breaks it disables the skip, and the scan looks at every pixel.
 
 /// Class of pixels that belong to no marker.
 pub const BACKGROUND: u8 = 0;
-/// Pair-table entry for two pixels of different classes.
-pub const MIXED: u8 = 0xFF;
 /// Most marker classes a table can hold (class numbers 1..=MAX_CLASSES).
 pub const MAX_CLASSES: usize = 15;
 
@@ -91,48 +94,62 @@ pub const fn marker_class_for_car(id: u8) -> u8 {
     id % 8 + 1
 }
 
-/// Class lookup tables.
+/// Bits 7, 4 and 1 of each byte of a word: the top bit of red, green and blue in `RRRGGGBB`.
+pub const TOP_BITS: u32 = 0x9292_9292;
+
+/// Whether RGB332 code `p` is saturated in the sense of the word test: some channel has its top
+/// two bits set and some channel has its top bit clear.
+pub const fn is_saturated(p: u8) -> bool {
+    let high = p & (p << 1) & 0x92;
+    let low = !p & 0x92;
+    high != 0 && low != 0
+}
+
+/// Whether a word of four RGB332 pixels may hold a saturated pixel. `false` guarantees that none
+/// of the four is saturated: no byte has a high channel, or every byte has all three top bits set.
+#[inline(always)]
+pub const fn word_may_be_saturated(w: u32) -> bool {
+    (w & (w << 1) & TOP_BITS) != 0 && (w & TOP_BITS) != TOP_BITS
+}
+
+/// Class lookup table.
 #[derive(Clone)]
 pub struct ColourClasses {
     class: [u8; 256],
-    pair: [u8; 65536],
+    /// Every non-background code is saturated, so words failing [`word_may_be_saturated`] are
+    /// background.
+    skip_unsaturated: bool,
 }
 
 impl core::fmt::Debug for ColourClasses {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("ColourClasses")
             .field("class", &&self.class[..])
-            .finish_non_exhaustive()
+            .field("skip_unsaturated", &self.skip_unsaturated)
+            .finish()
     }
 }
 
 impl ColourClasses {
-    /// Builds the tables from a class per RGB332 code; classes above [`MAX_CLASSES`] count as
+    /// Builds the table from a class per RGB332 code; classes above [`MAX_CLASSES`] count as
     /// background.
     pub const fn from_table(table: [u8; 256]) -> Self {
         let mut class = table;
+        let mut skip_unsaturated = true;
         let mut i = 0;
         while i < 256 {
             if class[i] as usize > MAX_CLASSES {
                 class[i] = BACKGROUND;
             }
+            if class[i] != BACKGROUND && !is_saturated(i as u8) {
+                skip_unsaturated = false;
+            }
             i += 1;
         }
-        let mut pair = [0u8; 65536];
-        let mut a = 0;
-        while a < 256 {
-            let mut b = 0;
-            while b < 256 {
-                pair[a | (b << 8)] = if class[a] == class[b] {
-                    class[a]
-                } else {
-                    MIXED
-                };
-                b += 1;
-            }
-            a += 1;
+        ColourClasses {
+            class,
+            skip_unsaturated,
         }
-        ColourClasses { class, pair }
     }
 
     /// Class `i + 1` for the RGB332 codes nearest to `palette[i]` within `max_distance`; palette
@@ -173,16 +190,16 @@ impl ColourClasses {
         self.class[usize::from(rgb565_to_rgb332(p))]
     }
 
-    /// Class of two adjacent RGB332 pixels given as `first | second << 8`, or [`MIXED`].
+    /// Whether the four RGB332 pixels of `w` (first pixel in the low byte) are certainly all
+    /// background: a cheap test that is exact in one direction only (`false` says nothing).
     #[inline(always)]
-    pub fn class_of_pair_index(&self, pair: u16) -> u8 {
-        self.pair[usize::from(pair)]
+    pub fn word_is_background(&self, w: u32) -> bool {
+        self.skip_unsaturated && !word_may_be_saturated(w)
     }
 
-    /// Class of two adjacent RGB332 pixels, or [`MIXED`].
-    #[inline(always)]
-    pub fn class_of_pair(&self, first: u8, second: u8) -> u8 {
-        self.pair[usize::from(first) | (usize::from(second) << 8)]
+    /// Whether [`ColourClasses::word_is_background`] can ever answer `true` for this table.
+    pub fn skips_background_words(&self) -> bool {
+        self.skip_unsaturated
     }
 }
 
@@ -250,17 +267,68 @@ mod tests {
     }
 
     #[test]
-    fn pair_table_agrees_with_single_table() {
-        for a in 0..=255u8 {
-            for b in 0..=255u8 {
-                let (ca, cb) = (
-                    MARKER_CLASSES.class_of_rgb332(a),
-                    MARKER_CLASSES.class_of_rgb332(b),
-                );
-                let want = if ca == cb { ca } else { MIXED };
-                assert_eq!(MARKER_CLASSES.class_of_pair(a, b), want);
+    fn every_marker_code_is_saturated_so_words_can_be_skipped() {
+        assert!(MARKER_CLASSES.skips_background_words());
+        for p in 0..=255u8 {
+            if MARKER_CLASSES.class_of_rgb332(p) != BACKGROUND {
+                assert!(is_saturated(p), "{p:#04x}");
             }
         }
+    }
+
+    #[test]
+    fn word_test_never_skips_a_saturated_pixel() {
+        // Exhaustive over one saturated byte at every position among fixed fillers, and over
+        // all byte pairs repeated.
+        let fillers = [0x00u8, 0xFF, 0x92, 0x49, 0x6D, 0xB6, 0xDB, 0x25];
+        for p in 0..=255u8 {
+            for &f in &fillers {
+                for pos in 0..4 {
+                    let mut b = [f; 4];
+                    b[pos] = p;
+                    let w = u32::from_le_bytes(b);
+                    if is_saturated(p) || is_saturated(f) {
+                        assert!(word_may_be_saturated(w), "{w:#010x}");
+                    }
+                }
+            }
+            for q in 0..=255u8 {
+                let w = u32::from_le_bytes([p, q, q, p]);
+                let any = is_saturated(p) || is_saturated(q);
+                assert!(!any || word_may_be_saturated(w), "{w:#010x}");
+            }
+        }
+    }
+
+    #[test]
+    fn scene_words_are_skipped() {
+        // Floor greys, white walls, the dark backdrop and car bodies, noisy by +/-12.
+        for base in [
+            Rgb::new(150, 140, 120),
+            Rgb::new(120, 115, 100),
+            Rgb::new(225, 225, 225),
+            Rgb::new(40, 40, 48),
+            Rgb::new(70, 70, 70),
+        ] {
+            for d in [-12i16, 0, 12] {
+                let n = |v: u8| (i16::from(v) + d).clamp(0, 255) as u8;
+                let p = Rgb::new(n(base.r), n(base.g), n(base.b)).to_rgb332();
+                let w = u32::from_le_bytes([p; 4]);
+                assert!(
+                    MARKER_CLASSES.word_is_background(w),
+                    "{base:?} {d} {p:#04x}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_table_with_an_unsaturated_class_disables_the_skip() {
+        let mut t = [0u8; 256];
+        t[0x92] = 1; // mid grey
+        let c = ColourClasses::from_table(t);
+        assert!(!c.skips_background_words());
+        assert!(!c.word_is_background(0x9292_9292));
     }
 
     #[test]

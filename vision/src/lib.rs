@@ -1,9 +1,10 @@
 //! On-board vision of the ALMC upper board.
 //!
 //! A frame from the frame-grabber window ([`frame`]) goes through one pass: each row is turned into
-//! runs of colour class ([`colour`]; RGB332 pixels are classified two at a time by one table
-//! lookup), the runs are joined into connected blobs ([`blobs`]), and a blob that is a car's
-//! marker gives a bearing and a range through the camera model ([`pinhole`]). No heap, no
+//! runs of colour class ([`colour`]; a 256-entry table, and a word test that skips four
+//! background RGB332 pixels at a time), the runs are joined into connected blobs ([`blobs`]),
+//! and a blob that is a car's marker gives a bearing and a range through the camera model
+//! ([`pinhole`]); [`follow`] turns that into steering and speed to follow a leader. No heap, no
 //! floating point per pixel; all state lives in fixed arrays sized by named constants.
 
 #![cfg_attr(not(test), no_std)]
@@ -11,6 +12,7 @@
 
 pub mod blobs;
 pub mod colour;
+pub mod follow;
 pub mod frame;
 pub mod pinhole;
 
@@ -138,22 +140,12 @@ impl<'a> RunBuilder<'a> {
 }
 
 /// Runs of one RGB332 row into `out`; returns how many were stored and how many did not fit.
-/// The hot loop looks up two pixels at once and falls to per-pixel work only where the class
-/// changes.
+/// One table lookup per pixel (the path for rows that are not word-aligned).
 pub fn row_runs_rgb332(row: &[u8], classes: &ColourClasses, out: &mut [Run]) -> (usize, u32) {
     let mut rb = RunBuilder::new(out);
-    let mut pairs = row.chunks_exact(2);
-    let total = pairs.len();
-    while let Some(p) = pairs.next() {
-        if classes.class_of_pair(p[0], p[1]) != rb.cur {
-            let x = ((total - pairs.len() - 1) * 2) as u16;
-            rb.step(x, classes.class_of_rgb332(p[0]));
-            rb.step(x + 1, classes.class_of_rgb332(p[1]));
-        }
-    }
-    let mut x = (total * 2) as u16;
-    if let [last] = pairs.remainder() {
-        rb.step(x, classes.class_of_rgb332(*last));
+    let mut x: u16 = 0;
+    for &p in row {
+        rb.step(x, classes.class_of_rgb332(p));
         x = x.wrapping_add(1);
     }
     rb.close(x);
@@ -161,8 +153,9 @@ pub fn row_runs_rgb332(row: &[u8], classes: &ColourClasses, out: &mut [Run]) -> 
 }
 
 /// [`row_runs_rgb332`] over a row read as little-endian 32-bit words (four pixels each, first
-/// pixel in the low byte); `width` pixels are used. This is the board's path: one load per four
-/// pixels and one table lookup per two.
+/// pixel in the low byte); `width` pixels are used. This is the board's path: outside a marker
+/// run, a word that [`ColourClasses::word_is_background`] clears costs one load and a few ALU
+/// instructions; other words are classified pixel by pixel through the 256-entry table.
 pub fn row_runs_rgb332_words(
     row: &[u32],
     width: u16,
@@ -171,17 +164,23 @@ pub fn row_runs_rgb332_words(
 ) -> (usize, u32) {
     let mut rb = RunBuilder::new(out);
     let full = (usize::from(width) / 4).min(row.len());
-    let mut words = row[..full].iter();
-    while let Some(&w) = words.next() {
-        let lo = classes.class_of_pair_index((w & 0xFFFF) as u16);
-        let hi = classes.class_of_pair_index((w >> 16) as u16);
-        if lo != rb.cur || hi != rb.cur {
-            let x = ((full - words.len() - 1) * 4) as u16;
-            let b = w.to_le_bytes();
-            for (k, &p) in b.iter().enumerate() {
-                rb.step(x + k as u16, classes.class_of_rgb332(p));
+    let words = &row[..full];
+    let mut i = 0;
+    while i < full {
+        if rb.cur == BACKGROUND {
+            // Skip background words; this loop is where almost all of a frame goes.
+            while i < full && classes.word_is_background(words[i]) {
+                i += 1;
+            }
+            if i == full {
+                break;
             }
         }
+        let x = (i * 4) as u16;
+        for (k, &p) in words[i].to_le_bytes().iter().enumerate() {
+            rb.step(x + k as u16, classes.class_of_rgb332(p));
+        }
+        i += 1;
     }
     let mut x = (full * 4) as u16;
     if let Some(&w) = row.get(full) {
@@ -206,8 +205,14 @@ pub fn row_runs_rgb565(row: &[u8], classes: &ColourClasses, out: &mut [Run]) -> 
     (rb.n, rb.dropped)
 }
 
+/// `bytes` as little-endian 32-bit words, if the slice is 4-byte aligned and a whole number of
+/// words long (frame-grabber buffers are).
+pub fn as_words(bytes: &[u8]) -> Option<&[u32]> {
+    bytemuck::try_cast_slice(bytes).ok()
+}
+
 /// Finds the colour blobs of a whole frame held in `frame` (a frame buffer of the window, or a
-/// copy). `detector` carries the connected-component state (about 29 KiB, so it is passed in
+/// copy). `detector` carries the connected-component state (about 7.7 KiB, so it is passed in
 /// rather than put on the stack).
 pub fn process_frame(
     frame: &[u8],
@@ -237,7 +242,7 @@ pub fn process_frame(
     // Word-aligned RGB332 frames (every frame-grabber buffer) take the four-pixel path.
     let words: Option<&[u32]> = match geometry.format {
         PixelFormat::Rgb332 if geometry.stride.is_multiple_of(4) => {
-            bytemuck::try_cast_slice(&frame[..frame.len() & !3]).ok()
+            as_words(&frame[..frame.len() & !3])
         }
         _ => None,
     };

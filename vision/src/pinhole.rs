@@ -5,9 +5,12 @@
 //! of view: `f = (width / 2) / tan(hfov / 2)`. The camera sits `height_mm` above the floor, pitched
 //! down by `tilt_mrad`. Car frame: forward, left, up; bearing is counter-clockwise (to the left)
 //! from straight ahead, in milliradians, as everywhere in the project.
+//!
+//! The trigonometry uses the compact `f32` functions of `maneuvers::fmath` (no `f64`, no `libm`:
+//! the firmware has no FPU and little room for code); per blob, not per pixel.
 
 use crate::blobs::Blob;
-use libm::{atan2f, cosf, sinf, sqrtf, tanf};
+use maneuvers::fmath::{atan2 as atan2f, cos as cosf, sin as sinf, sqrt as sqrtf, tan as tanf};
 
 /// Camera intrinsics and mounting.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -186,12 +189,8 @@ mod tests {
         let (cx, cl) = (1000.0f32, 300.0f32);
         let bearing = atan2f(cl, cx);
         let d = sqrtf(cx * cx + cl * cl);
-        let half = libm::asinf(mk.diameter_mm * 0.5 / d);
-        let edge = |a: f32| {
-            m.project([libm::cosf(a) * d, libm::sinf(a) * d, 0.0])
-                .unwrap()
-                .0
-        };
+        let half = (mk.diameter_mm * 0.5 / d).asin();
+        let edge = |a: f32| m.project([a.cos() * d, a.sin() * d, 0.0]).unwrap().0;
         let (ul, ur) = (edge(bearing + half), edge(bearing - half));
         let blob = Blob {
             class: 1,

@@ -8,6 +8,7 @@
 
 use crate::clint::Clint;
 use crate::exit::TestDevice;
+use crate::framegrabber::{FrameGrabber, MmioWindow};
 use crate::mmio::Mmio;
 use crate::pci::{Ecam, IoAllocator, IoDevice, IoWindow, PciError};
 use crate::plic::Plic;
@@ -38,6 +39,9 @@ pub mod map {
     pub const PCI_ECAM: usize = 0x3000_0000;
     /// Start of RAM (the image is linked here, see `boards/qemu_virt/memory.x`).
     pub const RAM: usize = 0x8000_0000;
+    /// Frame-grabber window (`vision::frame::WINDOW_LEN` bytes): RAM past the image's 16 MiB,
+    /// which QEMU backs with a shared file the host writes (`-m 32M`, see qemu-harness).
+    pub const FRAME_GRABBER: usize = 0x8100_0000;
 }
 
 /// PLIC interrupt sources.
@@ -70,6 +74,8 @@ pub const EXIT_NO_SEMIHOSTING: u16 = 3;
 pub type Uart = Port<Mmio>;
 /// The clock of this board.
 pub type Clock = Clint<Mmio>;
+/// The camera's frame grabber on this board.
+pub type Camera = FrameGrabber<MmioWindow>;
 
 static LBC_PORT: PortState<Mmio> = PortState::new();
 static RADIO_PORT: PortState<Mmio> = PortState::new();
@@ -126,6 +132,8 @@ pub struct Board {
     /// The interrupt controller (hart 0, machine mode), already routing both UARTs. The
     /// external interrupt handler claims and completes through its own accessor.
     pub plic: Plic<Mmio>,
+    /// Reader of the camera's frame-grabber window at [`map::FRAME_GRABBER`].
+    pub camera: Camera,
 }
 
 /// The CLINT. Reading time is harmless from anywhere (e.g. log timestamps).
@@ -138,6 +146,13 @@ pub fn clock() -> Clock {
 pub fn exit_device() -> TestDevice<Mmio> {
     // SAFETY: the SiFive test device's register on qemu virt.
     TestDevice::new(unsafe { Mmio::new(map::TEST) })
+}
+
+/// A reader of the frame grabber's window (readers do not disturb each other or the writer).
+pub fn camera() -> Camera {
+    // SAFETY: the window is RAM (or frame memory) outside the image's region of the linker
+    // script, 4 KiB aligned, written only by the camera side; no Rust object lives there.
+    FrameGrabber::new(unsafe { MmioWindow::new(map::FRAME_GRABBER, vision::frame::WINDOW_LEN) })
 }
 
 fn plic() -> Plic<Mmio> {
@@ -188,6 +203,7 @@ impl Board {
             clock,
             exit: exit_device(),
             plic,
+            camera: camera(),
         })
     }
 }

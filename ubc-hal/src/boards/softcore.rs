@@ -6,6 +6,7 @@
 
 use crate::clint::Clint;
 use crate::exit::TestDevice;
+use crate::framegrabber::{FrameGrabber, MmioWindow};
 use crate::mmio::Mmio;
 use crate::plic::Plic;
 use crate::serial::{OpenError, Port, PortState};
@@ -35,6 +36,9 @@ pub mod map {
     pub const UART1: usize = 0x1000_1000;
     /// Start of RAM (1 MiB; see `boards/softcore/memory.x`).
     pub const RAM: usize = 0x8000_0000;
+    /// Frame-grabber window (`vision::frame::WINDOW_LEN` bytes): the SoC's frame memory,
+    /// written by the test bench.
+    pub const FRAME_GRABBER: usize = 0x8100_0000;
 }
 
 /// PLIC interrupt sources.
@@ -57,6 +61,8 @@ pub const EXIT_EXCEPTION: u16 = 2;
 pub type Uart = Port<Mmio>;
 /// The clock of this board.
 pub type Clock = Clint<Mmio>;
+/// The camera's frame grabber on this board.
+pub type Camera = FrameGrabber<MmioWindow>;
 
 static LBC_PORT: PortState<Mmio> = PortState::new();
 static RADIO_PORT: PortState<Mmio> = PortState::new();
@@ -108,6 +114,8 @@ pub struct Board {
     pub exit: TestDevice<Mmio>,
     /// The interrupt controller (hart 0, machine mode), already routing both UARTs.
     pub plic: Plic<Mmio>,
+    /// Reader of the camera's frame-grabber window at [`map::FRAME_GRABBER`].
+    pub camera: Camera,
 }
 
 /// The CLINT. Reading time is harmless from anywhere (e.g. log timestamps).
@@ -120,6 +128,13 @@ pub fn clock() -> Clock {
 pub fn exit_device() -> TestDevice<Mmio> {
     // SAFETY: the simulation-control exit register, which takes the SiFive test values.
     TestDevice::new(unsafe { Mmio::new(map::SIM_CTRL) })
+}
+
+/// A reader of the frame grabber's window (readers do not disturb each other or the writer).
+pub fn camera() -> Camera {
+    // SAFETY: the window is RAM (or frame memory) outside the image's region of the linker
+    // script, 4 KiB aligned, written only by the camera side; no Rust object lives there.
+    FrameGrabber::new(unsafe { MmioWindow::new(map::FRAME_GRABBER, vision::frame::WINDOW_LEN) })
 }
 
 fn plic() -> Plic<Mmio> {
@@ -170,6 +185,7 @@ impl Board {
             clock,
             exit: exit_device(),
             plic,
+            camera: camera(),
         })
     }
 }
