@@ -9,7 +9,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use clap::{Args, Subcommand};
+use clap::{Args, Subcommand, ValueEnum};
+use maneuvers::{ManeuverParams, Shape};
 use radio_mac::{CarId, Event};
 use serde_json::{json, Value};
 use ubc_app::program::console::{
@@ -66,6 +67,9 @@ pub enum CarCommand {
     /// Go-to-points maneuver.
     #[command(subcommand)]
     Maneuver(ManeuverCommand),
+    /// Group maneuver (formation, rendezvous, circle, go-to, camera follow).
+    #[command(subcommand)]
+    Group(GroupCommand),
     /// Link and program counters (all pages, or one).
     Stats {
         /// Page 0..=3 (0 LBC requests, 1 LBC line, 2 radio, 3 program).
@@ -85,6 +89,158 @@ pub enum ManeuverCommand {
     },
     /// Abort the maneuver and stop the car.
     Stop,
+}
+
+/// `almc car group ...`
+#[derive(Debug, Subcommand)]
+pub enum GroupCommand {
+    /// Start a group maneuver on this car (replaces any running maneuver).
+    #[command(subcommand)]
+    Start(GroupLaw),
+    /// Next waypoint `X,Y` (tracking units) of the formation leader.
+    Waypoint {
+        /// `X,Y` with X 0..=640, Y 0..=960.
+        point: String,
+    },
+    /// Stop the maneuver and the car.
+    Stop,
+}
+
+/// Formation geometry on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ShapeArg {
+    /// Single file behind the leader.
+    Line,
+    /// V opening backwards.
+    Wedge,
+}
+
+/// A group maneuver law and its parameters (ranges in `docs/maneuvers.md`).
+#[derive(Debug, Subcommand)]
+pub enum GroupLaw {
+    /// Leader-follower formation.
+    Formation {
+        /// Line or wedge.
+        #[arg(long, value_enum, default_value_t = ShapeArg::Line)]
+        shape: ShapeArg,
+        /// Leader's car ID, 1..=126.
+        #[arg(long)]
+        leader: u8,
+        /// Slot 0..=14 (default: rank of this car's ID among the followers).
+        #[arg(long)]
+        slot: Option<u8>,
+        /// Distance between slots, tracking units, 1..=511.
+        #[arg(long, default_value_t = 60)]
+        spacing: u16,
+        /// Leader's cruise speed, mm/s, 0..=2047.
+        #[arg(long, default_value_t = 150)]
+        speed: u16,
+    },
+    /// Rendezvous by consensus.
+    Rendezvous {
+        /// Arrival radius, tracking units, 1..=511.
+        #[arg(long, default_value_t = 40)]
+        radius: u16,
+        /// Maximum speed, mm/s, 0..=2047.
+        #[arg(long, default_value_t = 200)]
+        speed: u16,
+    },
+    /// Even spacing on a rotating circle.
+    Circle {
+        /// Centre X, tracking units, 0..=1023.
+        #[arg(long)]
+        cx: u16,
+        /// Centre Y, tracking units, 0..=1023.
+        #[arg(long)]
+        cy: u16,
+        /// Radius, tracking units, 1..=511.
+        #[arg(long)]
+        radius: u16,
+        /// Speed along the circle, mm/s, -2048..=2047 (positive counter-clockwise).
+        #[arg(long, default_value_t = 100, allow_negative_numbers = true)]
+        speed: i16,
+    },
+    /// Drive to a point and stop.
+    Goto {
+        /// Target X, tracking units, 0..=1023.
+        x: u16,
+        /// Target Y, tracking units, 0..=1023.
+        y: u16,
+        /// Maximum speed, mm/s, 0..=2047.
+        #[arg(long, default_value_t = 200)]
+        speed: u16,
+    },
+    /// Follow the car carrying a camera marker.
+    CameraFollow {
+        /// Vision colour class of the leader's marker, 0..=255.
+        #[arg(long)]
+        marker: u8,
+        /// Distance behind the leader, tracking units, 1..=511.
+        #[arg(long, default_value_t = 80)]
+        distance: u16,
+        /// Maximum speed, mm/s, 0..=2047.
+        #[arg(long, default_value_t = 150)]
+        speed: u16,
+    },
+}
+
+impl GroupLaw {
+    /// The parameters, checked against their wire ranges.
+    pub fn params(&self) -> Result<ManeuverParams, CarError> {
+        let p = match *self {
+            GroupLaw::Formation {
+                shape,
+                leader,
+                slot,
+                spacing,
+                speed,
+            } => ManeuverParams::Formation {
+                shape: match shape {
+                    ShapeArg::Line => Shape::Line,
+                    ShapeArg::Wedge => Shape::Wedge,
+                },
+                leader,
+                slot,
+                spacing_units: spacing,
+                speed_mm_s: speed,
+            },
+            GroupLaw::Rendezvous { radius, speed } => ManeuverParams::Rendezvous {
+                radius_units: radius,
+                speed_mm_s: speed,
+            },
+            GroupLaw::Circle {
+                cx,
+                cy,
+                radius,
+                speed,
+            } => ManeuverParams::Circle {
+                cx,
+                cy,
+                radius_units: radius,
+                speed_mm_s: speed,
+            },
+            GroupLaw::Goto { x, y, speed } => ManeuverParams::GoTo {
+                x,
+                y,
+                speed_mm_s: speed,
+            },
+            GroupLaw::CameraFollow {
+                marker,
+                distance,
+                speed,
+            } => ManeuverParams::CameraFollow {
+                marker,
+                distance_units: distance,
+                speed_mm_s: speed,
+            },
+        };
+        match p.encode() {
+            Ok(_) => Ok(p),
+            Err(maneuvers::EncodeError::FieldOutOfRange { field }) => Err(CarError::BadArgument(
+                format!("{field:?} is out of range (see docs/maneuvers.md)"),
+            )),
+        }
+    }
 }
 
 /// Why a console exchange failed.
@@ -178,6 +334,12 @@ fn build_requests(cmd: &CarCommand) -> Result<Vec<Request>, CarError> {
             vec![Request::ManeuverStart(p)]
         }
         CarCommand::Maneuver(ManeuverCommand::Stop) => vec![Request::ManeuverStop],
+        CarCommand::Group(GroupCommand::Start(law)) => vec![Request::GroupStart(law.params()?)],
+        CarCommand::Group(GroupCommand::Waypoint { point }) => {
+            let p = parse_point(point)?;
+            vec![Request::GroupWaypoint { x: p.x, y: p.y }]
+        }
+        CarCommand::Group(GroupCommand::Stop) => vec![Request::ManeuverStop],
         CarCommand::Stats { page: Some(p) } => vec![Request::Stats(*p)],
         CarCommand::Stats { page: None } => (0..4).map(Request::Stats).collect(),
     })
@@ -221,6 +383,32 @@ fn phase_name(p: u8) -> &'static str {
     }
 }
 
+/// Name of a law selector ([`ManeuverParams::kind`]).
+fn group_kind_name(kind: u8) -> &'static str {
+    match kind {
+        0 => "none",
+        1 => "formation",
+        2 => "rendezvous",
+        3 => "circle",
+        4 => "goto",
+        5 => "camera-follow",
+        _ => "unknown",
+    }
+}
+
+/// Name of a maneuver phase (`maneuvers::Phase`).
+fn group_phase_name(phase: u8) -> &'static str {
+    match phase {
+        0 => "idle",
+        1 => "approach",
+        2 => "track",
+        3 => "hold",
+        4 => "avoid",
+        5 => "no-reference",
+        _ => "unknown",
+    }
+}
+
 fn status_json(s: &Status) -> Value {
     let f = |bit| s.flags & bit != 0;
     json!({
@@ -246,6 +434,12 @@ fn status_json(s: &Status) -> Value {
         "bringups": s.bringups,
         "lbc_failures": s.lbc_failures,
         "uptime_s": s.uptime_s,
+        "group": {
+            "kind": group_kind_name(s.group_kind),
+            "phase": group_phase_name(s.group_phase),
+            "converged": s.group_converged,
+            "error_units": s.group_error_units,
+        },
     })
 }
 
@@ -302,6 +496,8 @@ pub fn reply_json(r: &Reply) -> (bool, Value) {
         Reply::StreamFormat(b) => (true, json!({ "stream_format": format!("0x{b:07x}") })),
         Reply::ManeuverStarted(n) => (true, json!({ "maneuver": "started", "points": n })),
         Reply::ManeuverStopped => (true, json!({ "maneuver": "stopped" })),
+        Reply::GroupStarted => (true, json!({ "group": "started" })),
+        Reply::GroupWaypointSet => (true, json!({ "group": "waypoint-set" })),
         Reply::Stats { page, values } => {
             let names = STATS_NAMES.get(usize::from(*page));
             let mut m = serde_json::Map::new();
@@ -317,6 +513,9 @@ pub fn reply_json(r: &Reply) -> (bool, Value) {
                 .unwrap_or("unknown");
             (true, json!({ "page": page_name, "counters": m }))
         }
+        // Replies of requests `almc car` does not send (they have their own commands).
+        #[allow(unreachable_patterns)]
+        other => (true, json!({ "reply": format!("{other:?}") })),
     }
 }
 
@@ -455,6 +654,56 @@ mod tests {
                 .len(),
             4
         );
+    }
+
+    #[test]
+    fn group_arguments_are_checked() {
+        let law = GroupLaw::Goto {
+            x: 300,
+            y: 600,
+            speed: 200,
+        };
+        assert_eq!(
+            build_requests(&CarCommand::Group(GroupCommand::Start(law))).unwrap(),
+            vec![Request::GroupStart(ManeuverParams::GoTo {
+                x: 300,
+                y: 600,
+                speed_mm_s: 200
+            })]
+        );
+        let bad = GroupLaw::Rendezvous {
+            radius: 0,
+            speed: 100,
+        };
+        assert!(build_requests(&CarCommand::Group(GroupCommand::Start(bad))).is_err());
+        let bad = GroupLaw::Formation {
+            shape: ShapeArg::Wedge,
+            leader: 127,
+            slot: None,
+            spacing: 60,
+            speed: 100,
+        };
+        assert!(build_requests(&CarCommand::Group(GroupCommand::Start(bad))).is_err());
+        assert_eq!(
+            build_requests(&CarCommand::Group(GroupCommand::Waypoint {
+                point: "320,480".into()
+            }))
+            .unwrap(),
+            vec![Request::GroupWaypoint { x: 320, y: 480 }]
+        );
+        assert!(build_requests(&CarCommand::Group(GroupCommand::Waypoint {
+            point: "700,480".into()
+        }))
+        .is_err());
+        let (ok, v) = reply_json(&Reply::Status(Status {
+            group_kind: 2,
+            group_phase: 3,
+            group_converged: true,
+            ..Status::default()
+        }));
+        assert!(ok);
+        assert_eq!(v["group"]["kind"], "rendezvous");
+        assert_eq!(v["group"]["phase"], "hold");
     }
 
     #[test]

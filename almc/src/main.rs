@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod camera;
 mod car;
 mod experiment;
 mod ground;
@@ -34,6 +35,9 @@ enum Group {
     Radio(radio::RadioCommand),
     /// Console of one car's UBC program over the radio: LBC commands, status, maneuvers.
     Car(car::CarArgs),
+    /// Camera frames of the cars: snapshots with the on-board detections drawn.
+    #[command(subcommand)]
+    Camera(camera::CameraCommand),
     /// Experiments with QEMU cars in the simulated arena.
     #[command(subcommand)]
     Experiment(experiment::ExperimentCommand),
@@ -47,5 +51,6 @@ fn main() -> ExitCode {
         Group::Radio(cmd) => radio::run(cmd),
         Group::Car(args) => car::run(&args),
         Group::Experiment(cmd) => experiment::run(cmd),
+        Group::Camera(cmd) => camera::run(cmd),
     }
 }

@@ -201,6 +201,37 @@ fn car_console_over_a_socket() {
     let out = car.almc(&["maneuver", "stop"], &state);
     assert!(out.status.success(), "{out:?}");
 
+    // Group maneuvers.
+    let out = car.almc(
+        &[
+            "--json", "group", "start", "goto", "310", "430", "--speed", "150",
+        ],
+        &state,
+    );
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(json_of(&out)["reply"]["group"], "started");
+    let out = car.almc(&["--json", "status"], &state);
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(json_of(&out)["reply"]["group"]["kind"], "goto");
+    assert_eq!(json_of(&out)["reply"]["maneuver"], true);
+    let out = car.almc(&["--json", "group", "waypoint", "300,300"], &state);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert_eq!(json_of(&out)["reply"]["refused"], "NoFormation");
+    let out = car.almc(
+        &[
+            "group", "start", "circle", "--cx", "300", "--cy", "400", "--radius", "100", "--speed",
+            "-120",
+        ],
+        &state,
+    );
+    assert!(out.status.success(), "{out:?}");
+    let out = car.almc(&["--json", "group", "stop"], &state);
+    assert!(out.status.success(), "{out:?}");
+    let out = car.almc(&["--json", "status"], &state);
+    assert_eq!(json_of(&out)["reply"]["group"]["kind"], "none");
+    let out = car.almc(&["group", "start", "rendezvous", "--radius", "0"], &state);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+
     // A refusal is a non-zero exit with the reason.
     let out = car.almc(&["--json", "lbc", "drds"], &state);
     assert!(out.status.success(), "{out:?}");

@@ -1,13 +1,21 @@
 //! Board layer of the program: feeds the two UARTs' interrupt-driven rings and the CLINT time
-//! to [`ubc_app::program::Program`], logs its events through defmt and sleeps in WFI until
-//! the program's next deadline or a received byte.
+//! to [`ubc_app::program::Program`], runs the vision pipeline on each new camera frame (in
+//! place in the frame grabber's window) and hands the program its detections, logs its events
+//! through defmt and sleeps in WFI until the program's next deadline, a received byte, or the
+//! next look at the frame grabber.
 
-use crate::board::{Board, Clock, Uart};
+use crate::board::{Board, Camera, Clock, Uart};
 use ubc_app::program::{self, BytePort, Config, LogEvent, LogSink, Program};
 use ubc_hal::cpu;
+use vision::blobs::BlobDetector;
+use vision::colour::MARKER_CLASSES;
+use vision::{process_frame, PipelineConfig};
 
 /// Period of the liveness log line, in microseconds.
 const STATS_PERIOD_US: u64 = 10_000_000;
+/// How often the frame grabber is looked at, in microseconds (the camera publishes at 15 to
+/// 30 frames per second and raises no interrupt).
+const CAMERA_POLL_US: u64 = 10_000;
 
 struct BoardClock<'a>(&'a Clock);
 
@@ -78,6 +86,10 @@ impl LogSink for Defmt {
             }
             LogEvent::ManeuverDone => defmt::info!("maneuver done"),
             LogEvent::ManeuverAborted => defmt::info!("maneuver aborted"),
+            LogEvent::GroupStarted { kind } => {
+                defmt::info!("group maneuver started: kind {=u8}", kind)
+            }
+            LogEvent::GroupStopped => defmt::info!("group maneuver stopped"),
         }
     }
 }
@@ -87,9 +99,12 @@ pub fn run(board: Board) -> ! {
     let clock = board.clock;
     let mut lbc = board.lbc;
     let mut radio = board.radio.ok();
+    let mut camera = board.camera;
+    let mut detector = BlobDetector::new();
     let mut program = Program::new(Config::default());
     let mut next_stats = clock.micros() + STATS_PERIOD_US;
     loop {
+        grab_frame(&mut camera, &mut detector, &mut program, &clock);
         program.poll(
             &BoardClock(&clock),
             &mut Port(Some(&mut lbc)),
@@ -101,7 +116,10 @@ pub fn run(board: Board) -> ! {
             next_stats += STATS_PERIOD_US;
             log_stats(&program, now);
         }
-        let due = program.poll_at(now).min(next_stats);
+        let due = program
+            .poll_at(now)
+            .min(next_stats)
+            .min(now + CAMERA_POLL_US);
         if due > now {
             clock.set_wakeup(clock.ticks_from_micros(due));
             cpu::idle_unless(|| {
@@ -110,6 +128,36 @@ pub fn run(board: Board) -> ! {
                     || clock.micros() >= due
             });
         }
+    }
+}
+
+/// Runs the vision pipeline on the newest frame, if a new one is published, and gives the
+/// program its detections. A frame the writer overwrote meanwhile is dropped (counted by the
+/// grabber); a window without a valid header (no camera) costs one header read.
+fn grab_frame(
+    camera: &mut Camera,
+    detector: &mut BlobDetector,
+    program: &mut Program,
+    clock: &Clock,
+) {
+    if !camera.has_new_frame() {
+        return;
+    }
+    let grabbed = camera.with_latest(|f| {
+        process_frame(
+            f.pixels,
+            &f.geometry,
+            &MARKER_CLASSES,
+            &PipelineConfig::default(),
+            detector,
+        )
+    });
+    match grabbed {
+        Ok(Some((ticket, Ok(detections)))) => {
+            program.on_camera_frame(clock.micros(), ticket.sequence, &detections);
+        }
+        Ok(Some((_, Err(e)))) => defmt::warn!("camera frame rejected: {}", e),
+        Ok(None) | Err(_) => {}
     }
 }
 

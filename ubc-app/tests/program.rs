@@ -10,8 +10,13 @@ use lbc_link::{
     Command, CommandKind, Duty, EepromAddress, GpioPattern, GpioRate, LedPattern, LedRate, Param,
     ParamValue, Position, Reply as LbcReply, SteerVelocity, SteeringAngle, UserRegister, Velocity,
 };
-use radio_mac::{Address, CarId, Event, GroundConfig, GroundStation, Key, RequestHandle};
-use ubc_app::program::console::{LbcOutcome, Notice, Point, Points, Refusal, Reply, Request, Tag};
+use radio_mac::{
+    Address, CarConfig, CarId, CarMac, CarState, Event, GroundConfig, GroundStation, Key,
+    RequestHandle, Role,
+};
+use ubc_app::program::console::{
+    LbcOutcome, ManeuverParams, Notice, Point, Points, Refusal, Reply, Request, Tag,
+};
 use ubc_app::program::{BytePort, Clock, Config, LogEvent, LogSink, Phase, Program, DEFAULT_KEY};
 
 const CAR: u8 = 7;
@@ -70,6 +75,8 @@ struct Sim {
     /// One byte in `n` on every link direction is corrupted (0: none).
     noise_every: u32,
     seed: u32,
+    /// Another car on the radio, broadcasting a fixed state (heard by the program only).
+    other: Option<CarMac>,
 }
 
 impl Sim {
@@ -101,6 +108,7 @@ impl Sim {
             failed: Vec::new(),
             noise_every: 0,
             seed: 0x1234_5678,
+            other: None,
         }
     }
 
@@ -170,6 +178,17 @@ impl Sim {
                 let mut bytes = buf[..n].to_vec();
                 self.corrupt(&mut bytes);
                 self.radio_port.rx.extend(bytes);
+            }
+        }
+        if let Some(o) = self.other.as_mut() {
+            o.poll(now);
+            let mut buf = [0u8; 256];
+            loop {
+                let n = o.transmit(&mut buf);
+                if n == 0 {
+                    break;
+                }
+                self.radio_port.rx.extend(&buf[..n]);
             }
         }
         let clock = SimClock(Cell::new(now));
@@ -634,4 +653,165 @@ fn radio_key_provisioned_in_eeprom_is_used() {
     s.run_ms(50);
     assert!(s.lbc.drive_enabled());
     assert!(s.prog.radio_stats().unwrap().auth_bad_mac >= 1);
+}
+
+/// Where the emulated car really is, tracking units.
+fn true_pos(s: &Sim) -> (f64, f64) {
+    let p = s.lbc.vehicle().pose();
+    (p.x_mm / 2.5, p.y_mm / 2.5)
+}
+
+#[test]
+fn group_goto_drives_there_and_reports_it() {
+    let mut s = Sim::new();
+    s.bring_up();
+    // A waypoint needs a running formation.
+    assert_eq!(
+        s.request(&Request::GroupWaypoint { x: 10, y: 10 }),
+        Reply::Refused(Refusal::NoFormation)
+    );
+    let stats_before = s.lbc.stats().commands;
+    let params = ManeuverParams::GoTo {
+        x: 400,
+        y: 560,
+        speed_mm_s: 200,
+    };
+    assert_eq!(s.request(&Request::GroupStart(params)), Reply::GroupStarted);
+    assert!(s.prog.group().active());
+    let t0 = s.now;
+    let arrived = |s: &Sim| s.prog.status(s.now).group_converged;
+    assert!(s.run_until(15_000, arrived), "{:?}", s.prog.status(s.now));
+    let secs = (s.now - t0) as f64 * 1e-6;
+    let (x, y) = true_pos(&s);
+    assert!((x - 400.0).hypot(y - 560.0) < 15.0, "at ({x}, {y})");
+    // Commands at a bounded rate (the stream runs at 30 Hz; the LED and ping traffic is small).
+    let sent = s.lbc.stats().commands - stats_before;
+    assert!(
+        (sent as f64) < 12.0 * secs + 5.0,
+        "{sent} commands in {secs} s"
+    );
+    let st = s.status();
+    assert_eq!(st.group_kind, 4);
+    assert_eq!(st.group_phase, 3, "hold: {st:?}");
+    assert!(st.group_converged && st.group_error_units <= 8, "{st:?}");
+    assert_ne!(st.flags & ubc_app::program::console::flags::MANEUVER, 0);
+    s.run_ms(500);
+    assert!(s.lbc.velocity_estimate_mm_s().abs() < 10.0);
+    // The state broadcast carries the role and phase.
+    let car = s.ground.cars().next().expect("car heard");
+    let (state, _) = car.state.expect("state heard");
+    assert_eq!(state.mode.role, Role::Follower);
+    assert_eq!(state.mode.phase, 3);
+    assert_eq!(
+        s.logged(|e| matches!(e, LogEvent::GroupStarted { kind: 4 })),
+        1
+    );
+    // ManeuverStop ends it.
+    assert_eq!(s.request(&Request::ManeuverStop), Reply::ManeuverStopped);
+    assert!(!s.prog.group().active());
+    assert_eq!(s.status().group_kind, 0);
+}
+
+#[test]
+fn group_maneuver_avoids_a_neighbour_heard_on_the_radio() {
+    let mut s = Sim::new();
+    let mut other = CarMac::new(CarConfig::new(CarId::new(3).unwrap()));
+    // Car 3 stands 100 units ahead, on the way to the goal.
+    other.set_state(CarState {
+        x: 300,
+        y: 500,
+        heading_mrad: 1571,
+        velocity_mm_s: 0,
+        mode: radio_mac::Mode::default(),
+    });
+    s.other = Some(other);
+    s.bring_up();
+    s.run_ms(500);
+    let params = ManeuverParams::GoTo {
+        x: 300,
+        y: 640,
+        speed_mm_s: 200,
+    };
+    assert_eq!(s.request(&Request::GroupStart(params)), Reply::GroupStarted);
+    let mut closest = f64::MAX;
+    let mut avoided = false;
+    for _ in 0..12_000 {
+        s.step();
+        let (x, y) = true_pos(&s);
+        closest = closest.min((x - 300.0).hypot(y - 500.0));
+        avoided |= s.prog.group().status().phase == maneuvers::Phase::Avoid;
+    }
+    assert!(avoided, "the avoidance never acted");
+    // Rear axles; the bodies (centred 16 units ahead) keep further apart than 40 units.
+    assert!(closest > 40.0, "came within {closest} units of car 3");
+    // And it still gets there.
+    let (x, y) = true_pos(&s);
+    assert!((x - 300.0).hypot(y - 640.0) < 24.0, "at ({x}, {y})");
+}
+
+#[test]
+fn group_maneuver_stops_when_the_user_link_or_the_lbc_is_lost() {
+    let mut s = Sim::new();
+    s.bring_up();
+    let far = ManeuverParams::GoTo {
+        x: 300,
+        y: 750,
+        speed_mm_s: 250,
+    };
+    assert_eq!(s.request(&Request::GroupStart(far)), Reply::GroupStarted);
+    s.run_ms(800);
+    assert!(s.lbc.velocity_estimate_mm_s() > 100.0);
+    s.ground_on = false;
+    s.run_ms(4_500);
+    assert!(!s.prog.group().active());
+    assert_eq!(s.logged(|e| *e == LogEvent::GroupStopped), 1);
+    assert!(s.lbc.velocity_estimate_mm_s().abs() < 20.0);
+
+    s.ground_on = true;
+    assert_eq!(s.request(&Request::GroupStart(far)), Reply::GroupStarted);
+    s.run_ms(500);
+    s.lbc.reset();
+    assert!(s.run_until(1_000, |s| !s.prog.group().active()));
+    assert_eq!(s.logged(|e| *e == LogEvent::GroupStopped), 2);
+    // After the recovery the car stays put until told again.
+    assert!(s.run_until(3_000, |s| s.prog.phase() == Phase::Running));
+    s.run_ms(1_000);
+    assert!(s.lbc.velocity_estimate_mm_s().abs() < 20.0);
+    // A manual LBC motion command ends a group maneuver too.
+    assert_eq!(s.request(&Request::GroupStart(far)), Reply::GroupStarted);
+    s.run_ms(300);
+    assert!(matches!(s.lbc(Command::Stop), LbcOutcome::Answer(_)));
+    assert!(!s.prog.group().active());
+    // So does disabling the drive.
+    assert_eq!(s.request(&Request::GroupStart(far)), Reply::GroupStarted);
+    assert!(matches!(s.lbc(Command::Drds), LbcOutcome::Answer(_)));
+    assert!(!s.prog.group().active());
+    assert_eq!(
+        s.request(&Request::GroupStart(far)),
+        Reply::Refused(Refusal::DriveDisabled)
+    );
+}
+
+#[test]
+fn group_start_broadcast_reaches_the_car() {
+    let mut s = Sim::new();
+    s.bring_up();
+    // Heard once, so that the user link is up.
+    s.status();
+    let params = ManeuverParams::Rendezvous {
+        radius_units: 40,
+        speed_mm_s: 200,
+    };
+    let mut buf = [0u8; 32];
+    let n = Request::GroupStart(params).encode(&mut buf).unwrap();
+    s.ground
+        .command(s.now, Address::Broadcast, Tag::GroupStart as u8, &buf[..n])
+        .expect("broadcast");
+    assert!(s.run_until(1_000, |s| s.prog.group().active()));
+    assert_eq!(s.prog.group().params(), params);
+    // Alone, the car is at its own rendezvous point.
+    s.run_ms(200);
+    let st = s.status();
+    assert_eq!(st.group_kind, 2);
+    assert!(st.group_converged, "{st:?}");
 }

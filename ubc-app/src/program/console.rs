@@ -11,6 +11,12 @@
 use heapless::Vec;
 use lbc_link::wire::{Frame, FrameError};
 use lbc_link::{Command, CommandKind, LbcMessage, Reply as LbcReply};
+use maneuvers::PARAMS_LEN;
+
+pub use super::camera::{BlobReport, CameraReport};
+
+/// The group maneuver parameters a [`Request::GroupStart`] carries.
+pub use maneuvers::ManeuverParams;
 
 /// Version byte opening every request and reply payload.
 pub const VERSION: u8 = 1;
@@ -40,6 +46,12 @@ pub enum Tag {
     ManeuverStop = 0x05,
     /// One page of counters.
     Stats = 0x06,
+    /// Start a group maneuver (formation, rendezvous, circle, go-to, camera follow).
+    GroupStart = 0x07,
+    /// Next waypoint of a formation leader.
+    GroupWaypoint = 0x08,
+    /// The latest camera detections and the camera-follow state.
+    Camera = 0x09,
     /// Car to ground station: something the user should know (sent as a radio-mac request).
     Notice = 0x10,
 }
@@ -55,6 +67,9 @@ impl Tag {
             0x04 => Tag::ManeuverStart,
             0x05 => Tag::ManeuverStop,
             0x06 => Tag::Stats,
+            0x07 => Tag::GroupStart,
+            0x08 => Tag::GroupWaypoint,
+            0x09 => Tag::Camera,
             0x10 => Tag::Notice,
             _ => return None,
         })
@@ -85,6 +100,11 @@ pub enum DecodeError {
     LbcFrame(FrameError),
     /// The carried LBC message is framed but not a valid message of the expected kind.
     LbcMessage(lbc_link::DecodeError),
+    /// The group maneuver parameters do not decode.
+    Params {
+        tag: u8,
+        error: maneuvers::DecodeError,
+    },
 }
 
 /// Why a payload could not be written.
@@ -127,6 +147,22 @@ pub enum Request {
     ManeuverStop,
     /// Report one [`StatsPage`].
     Stats(u8),
+    /// Run this group maneuver (replacing any running maneuver); the body is the 6-byte
+    /// [`ManeuverParams::encode`] form.
+    GroupStart(ManeuverParams),
+    /// Next waypoint of a formation leader, tracking units (X 0..=640, Y 0..=960).
+    GroupWaypoint {
+        /// X.
+        x: u16,
+        /// Y.
+        y: u16,
+    },
+    /// Report the latest camera detections with blob `blob` (0: the largest), see
+    /// [`CameraReport`].
+    Camera {
+        /// Index of the blob to include.
+        blob: u8,
+    },
 }
 
 fn put(out: &mut [u8], at: usize, bytes: &[u8]) -> Result<(), EncodeError> {
@@ -193,6 +229,9 @@ impl Request {
             Request::ManeuverStart(_) => Tag::ManeuverStart,
             Request::ManeuverStop => Tag::ManeuverStop,
             Request::Stats(_) => Tag::Stats,
+            Request::GroupStart(_) => Tag::GroupStart,
+            Request::GroupWaypoint { .. } => Tag::GroupWaypoint,
+            Request::Camera { .. } => Tag::Camera,
         }
     }
 
@@ -219,9 +258,21 @@ impl Request {
                 }
                 2 + 4 * points.len()
             }
-            Request::Stats(page) => {
+            Request::Stats(page) | Request::Camera { blob: page } => {
                 put(out, 1, &[*page])?;
                 2
+            }
+            Request::GroupStart(params) => {
+                put(out, 1, &params.encode().map_err(|_| EncodeError::Field)?)?;
+                1 + PARAMS_LEN
+            }
+            Request::GroupWaypoint { x, y } => {
+                if *x > 640 || *y > 960 {
+                    return Err(EncodeError::Field);
+                }
+                put(out, 1, &x.to_le_bytes())?;
+                put(out, 3, &y.to_le_bytes())?;
+                5
             }
         };
         if len > MAX_PAYLOAD {
@@ -282,6 +333,27 @@ impl Request {
                 expect_len(t, b, 1)?;
                 Request::Stats(b[0])
             }
+            Tag::Camera => {
+                expect_len(t, b, 1)?;
+                Request::Camera { blob: b[0] }
+            }
+            Tag::GroupStart => {
+                expect_len(t, b, PARAMS_LEN)?;
+                Request::GroupStart(
+                    ManeuverParams::decode(b).map_err(|e| DecodeError::Params { tag, error: e })?,
+                )
+            }
+            Tag::GroupWaypoint => {
+                expect_len(t, b, 4)?;
+                let (x, y) = (u16_at(b, 0), u16_at(b, 2));
+                if x > 640 {
+                    return Err(DecodeError::Field { tag, offset: 0 });
+                }
+                if y > 960 {
+                    return Err(DecodeError::Field { tag, offset: 2 });
+                }
+                Request::GroupWaypoint { x, y }
+            }
             Tag::Notice => return Err(DecodeError::UnknownTag { tag }),
         })
     }
@@ -308,6 +380,8 @@ pub enum Refusal {
     NotAuthorized = 0x07,
     /// An argument is out of range (e.g. a stream format with NOT-IN-USE bits).
     BadArgument = 0x08,
+    /// A formation waypoint while no formation maneuver runs.
+    NoFormation = 0x09,
 }
 
 impl Refusal {
@@ -321,6 +395,7 @@ impl Refusal {
             0x06 => Refusal::NotReady,
             0x07 => Refusal::NotAuthorized,
             0x08 => Refusal::BadArgument,
+            0x09 => Refusal::NoFormation,
             _ => return None,
         })
     }
@@ -375,6 +450,14 @@ pub struct Status {
     pub lbc_failures: u16,
     /// Seconds since the program started (wraps).
     pub uptime_s: u16,
+    /// Group maneuver law: the [`ManeuverParams::kind`] selector (0: none).
+    pub group_kind: u8,
+    /// Group maneuver phase ([`maneuvers::Phase`] value, as broadcast in the mode byte).
+    pub group_phase: u8,
+    /// The group maneuver's convergence test holds.
+    pub group_converged: bool,
+    /// Distance to the group maneuver's goal, tracking units (saturated).
+    pub group_error_units: u16,
 }
 
 /// Bits of [`Status::flags`].
@@ -397,7 +480,7 @@ pub mod flags {
     pub const POSE_VALID: u8 = 1 << 7;
 }
 
-const STATUS_LEN: usize = 24;
+const STATUS_LEN: usize = 29;
 
 impl Status {
     fn write(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
@@ -417,12 +500,27 @@ impl Status {
         b[18..20].copy_from_slice(&self.bringups.to_le_bytes());
         b[20..22].copy_from_slice(&self.lbc_failures.to_le_bytes());
         b[22..24].copy_from_slice(&self.uptime_s.to_le_bytes());
+        b[24] = self.group_kind;
+        b[25] = self.group_phase;
+        b[26] = u8::from(self.group_converged);
+        b[27..29].copy_from_slice(&self.group_error_units.to_le_bytes());
         put(out, 0, &b)?;
         Ok(STATUS_LEN)
     }
 
-    fn read(b: &[u8]) -> Self {
-        Status {
+    /// `b` is [`STATUS_LEN`] bytes long (checked by the caller).
+    fn read(b: &[u8]) -> Result<Self, DecodeError> {
+        let group_converged = match b[26] {
+            0 => false,
+            1 => true,
+            _ => {
+                return Err(DecodeError::Field {
+                    tag: Tag::Status as u8,
+                    offset: 26,
+                })
+            }
+        };
+        Ok(Status {
             phase: b[0],
             flags: b[1],
             car_id: b[2],
@@ -438,7 +536,11 @@ impl Status {
             bringups: u16_at(b, 18),
             lbc_failures: u16_at(b, 20),
             uptime_s: u16_at(b, 22),
-        }
+            group_kind: b[24],
+            group_phase: b[25],
+            group_converged,
+            group_error_units: u16_at(b, 27),
+        })
     }
 }
 
@@ -475,11 +577,17 @@ pub enum Reply {
     ManeuverStarted(u8),
     /// The maneuver was stopped.
     ManeuverStopped,
+    /// The group maneuver started.
+    GroupStarted,
+    /// The formation leader took the waypoint.
+    GroupWaypointSet,
     /// One statistics page.
     Stats {
         page: u8,
         values: Vec<u32, STATS_PER_PAGE>,
     },
+    /// The camera report.
+    Camera(CameraReport),
 }
 
 const OK: u8 = 0x00;
@@ -521,7 +629,16 @@ impl Reply {
                 put(out, 2, &[*n])?;
                 (OK, 1)
             }
-            Reply::ManeuverStopped => (OK, 0),
+            Reply::ManeuverStopped | Reply::GroupStarted | Reply::GroupWaypointSet => (OK, 0),
+            Reply::Camera(report) => {
+                let dst = out
+                    .get_mut(2..)
+                    .ok_or(EncodeError::BufferTooSmall { needed: 3 })?;
+                let n = report.write(dst).map_err(|_| EncodeError::BufferTooSmall {
+                    needed: 2 + super::camera::REPORT_LEN + super::camera::BLOB_LEN,
+                })?;
+                (OK, n)
+            }
             Reply::Stats { page, values } => {
                 put(out, 2, &[*page])?;
                 for (i, v) in values.iter().enumerate() {
@@ -583,7 +700,7 @@ impl Reply {
             }
             (Tag::Status, OK) => {
                 expect_len(t, b, STATUS_LEN)?;
-                Reply::Status(Status::read(b))
+                Reply::Status(Status::read(b)?)
             }
             (Tag::StreamFormat, OK) => {
                 expect_len(t, b, 4)?;
@@ -593,9 +710,13 @@ impl Reply {
                 expect_len(t, b, 1)?;
                 Reply::ManeuverStarted(b[0])
             }
-            (Tag::ManeuverStop, OK) => {
+            (Tag::ManeuverStop | Tag::GroupStart | Tag::GroupWaypoint, OK) => {
                 expect_len(t, b, 0)?;
-                Reply::ManeuverStopped
+                match t {
+                    Tag::GroupStart => Reply::GroupStarted,
+                    Tag::GroupWaypoint => Reply::GroupWaypointSet,
+                    _ => Reply::ManeuverStopped,
+                }
             }
             (Tag::Stats, OK) => {
                 let (&page, rest) = b.split_first().ok_or(DecodeError::Length {
@@ -616,6 +737,13 @@ impl Reply {
                     let _ = values.push(u32_at(c, 0));
                 }
                 Reply::Stats { page, values }
+            }
+            (Tag::Camera, OK) => {
+                Reply::Camera(CameraReport::read(b).map_err(|_| DecodeError::Length {
+                    tag,
+                    expected: super::camera::REPORT_LEN,
+                    got: b.len(),
+                })?)
             }
             (Tag::Notice, _) => return Err(DecodeError::UnknownTag { tag }),
             (_, code) => return Err(DecodeError::UnknownResult { code }),
@@ -762,6 +890,155 @@ mod tests {
         assert_eq!(Reply::decode(0x01, &b[..n]).unwrap(), r);
     }
 
+    #[test]
+    fn group_request_vectors() {
+        let params = ManeuverParams::GoTo {
+            x: 300,
+            y: 600,
+            speed_mm_s: 200,
+        };
+        let r = Request::GroupStart(params);
+        let (b, n) = req_bytes(&r);
+        let mut expected = vec![1];
+        expected.extend_from_slice(&params.encode().unwrap());
+        assert_eq!(&b[..n], &expected[..]);
+        // kind 4 | x 300 << 3 | y 600 << 13 | speed 200 << 23
+        assert_eq!(&b[..n], &[1, 0x64, 0x09, 0x4B, 0x64, 0x00, 0x00]);
+        assert_eq!(Request::decode(0x07, &b[..n]).unwrap(), r);
+
+        let r = Request::GroupWaypoint { x: 0x140, y: 0x3C0 };
+        let (b, n) = req_bytes(&r);
+        assert_eq!(&b[..n], &[1, 0x40, 0x01, 0xC0, 0x03]);
+        assert_eq!(Request::decode(0x08, &b[..n]).unwrap(), r);
+
+        let mut o = [0u8; MAX_PAYLOAD];
+        let n = Reply::GroupStarted.encode(&mut o).unwrap();
+        assert_eq!(&o[..n], &[1, 0]);
+        assert_eq!(Reply::decode(0x07, &o[..n]).unwrap(), Reply::GroupStarted);
+        assert_eq!(
+            Reply::decode(0x08, &o[..n]).unwrap(),
+            Reply::GroupWaypointSet
+        );
+    }
+
+    #[test]
+    fn bad_group_requests_are_typed_errors() {
+        // Unknown law selector 6.
+        assert_eq!(
+            Request::decode(0x07, &[1, 6, 0, 0, 0, 0, 0]),
+            Err(DecodeError::Params {
+                tag: 7,
+                error: maneuvers::DecodeError::UnknownKind { kind: 6 }
+            })
+        );
+        assert_eq!(
+            Request::decode(0x07, &[1, 0, 0, 0, 0, 0]),
+            Err(DecodeError::Length {
+                tag: 7,
+                expected: 6,
+                got: 5
+            })
+        );
+        assert_eq!(
+            Request::decode(0x08, &[1, 0x81, 0x02, 0, 0]),
+            Err(DecodeError::Field { tag: 8, offset: 0 })
+        );
+        assert_eq!(
+            Request::decode(0x08, &[1, 0, 0, 0xC1, 0x03]),
+            Err(DecodeError::Field { tag: 8, offset: 2 })
+        );
+        assert_eq!(
+            Request::GroupWaypoint { x: 641, y: 0 }.encode(&mut [0u8; MAX_PAYLOAD]),
+            Err(EncodeError::Field)
+        );
+        assert_eq!(
+            Request::GroupStart(ManeuverParams::Rendezvous {
+                radius_units: 0,
+                speed_mm_s: 100
+            })
+            .encode(&mut [0u8; MAX_PAYLOAD]),
+            Err(EncodeError::Field)
+        );
+    }
+
+    #[test]
+    fn status_layout_keeps_old_fields_first() {
+        let s = Status {
+            phase: 2,
+            flags: 0x21,
+            car_id: 7,
+            x: 0x0102,
+            uptime_s: 0x0A0B,
+            group_kind: 4,
+            group_phase: 1,
+            group_converged: true,
+            group_error_units: 0x0304,
+            ..Status::default()
+        };
+        let mut o = [0u8; MAX_PAYLOAD];
+        let n = Reply::Status(s).encode(&mut o).unwrap();
+        assert_eq!(n, 2 + 29);
+        assert_eq!(&o[..6], &[1, 0, 2, 0x21, 7, 0x02]);
+        assert_eq!(&o[24..31], &[0x0B, 0x0A, 4, 1, 1, 0x04, 0x03]);
+        // A converged byte other than 0 or 1 is refused.
+        o[28] = 2;
+        assert_eq!(
+            Reply::decode(0x02, &o[..n]),
+            Err(DecodeError::Field { tag: 2, offset: 26 })
+        );
+    }
+
+    fn arb_params() -> impl Strategy<Value = ManeuverParams> {
+        prop_oneof![
+            Just(ManeuverParams::Idle),
+            (0u16..1024, 0u16..1024, 0u16..2048)
+                .prop_map(|(x, y, speed_mm_s)| ManeuverParams::GoTo { x, y, speed_mm_s }),
+            (1u16..512, 0u16..2048).prop_map(|(radius_units, speed_mm_s)| {
+                ManeuverParams::Rendezvous {
+                    radius_units,
+                    speed_mm_s,
+                }
+            }),
+            (0u16..1024, 0u16..1024, 1u16..512, -2048i16..2048).prop_map(
+                |(cx, cy, radius_units, speed_mm_s)| ManeuverParams::Circle {
+                    cx,
+                    cy,
+                    radius_units,
+                    speed_mm_s
+                }
+            ),
+            (
+                any::<bool>(),
+                1u8..=126,
+                proptest::option::of(0u8..15),
+                1u16..512,
+                0u16..2048
+            )
+                .prop_map(|(w, leader, slot, spacing_units, speed_mm_s)| {
+                    ManeuverParams::Formation {
+                        shape: if w {
+                            maneuvers::Shape::Wedge
+                        } else {
+                            maneuvers::Shape::Line
+                        },
+                        leader,
+                        slot,
+                        spacing_units,
+                        speed_mm_s,
+                    }
+                }),
+            (any::<u8>(), 1u16..512, 0u16..2048).prop_map(
+                |(marker, distance_units, speed_mm_s)| {
+                    ManeuverParams::CameraFollow {
+                        marker,
+                        distance_units,
+                        speed_mm_s,
+                    }
+                }
+            ),
+        ]
+    }
+
     fn arb_status() -> impl Strategy<Value = Status> {
         (
             any::<[u8; 3]>(),
@@ -769,8 +1046,9 @@ mod tests {
             any::<[i16; 2]>(),
             any::<[u8; 3]>(),
             any::<[u16; 4]>(),
+            (any::<[u8; 2]>(), any::<bool>(), any::<u16>()),
         )
-            .prop_map(|(a, b, c, d, e)| Status {
+            .prop_map(|(a, b, c, d, e, g)| Status {
                 phase: a[0],
                 flags: a[1],
                 car_id: a[2],
@@ -786,6 +1064,10 @@ mod tests {
                 bringups: e[1],
                 lbc_failures: e[2],
                 uptime_s: e[3],
+                group_kind: g.0[0],
+                group_phase: g.0[1],
+                group_converged: g.1,
+                group_error_units: g.2,
             })
     }
 
@@ -812,6 +1094,36 @@ mod tests {
             let r = Request::ManeuverStart(points);
             let (b, n) = req_bytes(&r);
             prop_assert_eq!(Request::decode(0x04, &b[..n]).unwrap(), r);
+        }
+
+        #[test]
+        fn group_requests_round_trip(p in arb_params(), x in 0u16..=640, y in 0u16..=960) {
+            for r in [Request::GroupStart(p), Request::GroupWaypoint { x, y }] {
+                let (b, n) = req_bytes(&r);
+                prop_assert_eq!(Request::decode(r.tag() as u8, &b[..n]).unwrap(), r);
+            }
+        }
+
+        #[test]
+        fn camera_requests_and_replies_round_trip(blob in any::<u8>(), seq in any::<u32>(), n in any::<u8>()) {
+            let r = Request::Camera { blob };
+            let mut out = [0u8; MAX_PAYLOAD];
+            let len = r.encode(&mut out).unwrap();
+            prop_assert_eq!(&out[..len], &[VERSION, blob][..]);
+            prop_assert_eq!(Request::decode(Tag::Camera as u8, &out[..len]), Ok(r));
+            let reply = Reply::Camera(CameraReport {
+                sequence: seq,
+                blobs: n,
+                leader_class: 2,
+                follow_state: 1,
+                leader_bearing_mrad: -12,
+                leader_range_mm: 640,
+                blob: (n > 0).then_some((blob, BlobReport { class: 2, area: 1234, ..BlobReport::default() })),
+            });
+            let len = reply.encode(&mut out).unwrap();
+            prop_assert!(len <= MAX_PAYLOAD);
+            prop_assert_eq!(Reply::decode(Tag::Camera as u8, &out[..len]), Ok(reply));
+            prop_assert!(Reply::decode(Tag::Camera as u8, &out[..len - 1]).is_err());
         }
 
         #[test]

@@ -10,10 +10,12 @@ use lbc_link::{Command, LedPattern, Reply as LbcReply, StreamFormat, StreamSampl
 use radio_mac::{Address, CarConfig, CarId, CarMac, CarState, Event as RadioEvent, IncomingId};
 use radio_mac::{Mode, Role};
 
+use super::camera::Camera;
 use super::config::Config;
 use super::console::{
     self, flags, LbcOutcome, Notice, Refusal, Reply, Request, Status, Tag, MAX_PAYLOAD,
 };
+use super::group::{lbc_command, Group};
 use super::leds::LedState;
 use super::maneuver::Maneuver;
 use super::{BytePort, Clock, LogSink};
@@ -78,6 +80,7 @@ enum Owner {
     Console(IncomingId),
     StreamFormat(IncomingId),
     Maneuver,
+    Group,
     Led(LedPattern, LedPattern),
     Stop,
     Ping,
@@ -117,6 +120,10 @@ pub enum LogEvent {
     ManeuverDone,
     /// The maneuver was aborted.
     ManeuverAborted,
+    /// A group maneuver started (law selector of `maneuvers::ManeuverParams::kind`).
+    GroupStarted { kind: u8 },
+    /// The group maneuver was stopped (request, link loss or a manual LBC command).
+    GroupStopped,
 }
 
 /// Program-level counters (statistics page 3).
@@ -175,6 +182,8 @@ pub struct Program {
     next_ping_us: u64,
     vehicle: Vehicle,
     maneuver: Maneuver,
+    group: Group,
+    camera: Camera,
     last_ground_us: Option<u64>,
     user_lost: bool,
     leds_sent: Option<(LedPattern, LedPattern)>,
@@ -232,6 +241,8 @@ impl Program {
             next_ping_us: 0,
             vehicle: Vehicle::default(),
             maneuver: Maneuver::default(),
+            group: Group::default(),
+            camera: Camera::default(),
             last_ground_us: None,
             user_lost: false,
             leds_sent: None,
@@ -245,6 +256,24 @@ impl Program {
             radio_tx_len: 0,
             radio_tx_pos: 0,
         }
+    }
+
+    /// The detections of camera frame `sequence`, processed at `now_us` by the board layer
+    /// (which owns the frame grabber); they feed the console's camera report and the
+    /// camera-follow maneuver.
+    pub fn on_camera_frame(
+        &mut self,
+        now_us: u64,
+        sequence: u32,
+        detections: &vision::blobs::Detections,
+    ) {
+        self.camera.on_frame(now_us, sequence, detections);
+    }
+
+    /// The camera state.
+    #[must_use]
+    pub fn camera(&self) -> &Camera {
+        &self.camera
     }
 
     /// Bring-up state.
@@ -263,6 +292,12 @@ impl Program {
     #[must_use]
     pub fn maneuver(&self) -> &Maneuver {
         &self.maneuver
+    }
+
+    /// The group maneuver.
+    #[must_use]
+    pub fn group(&self) -> &Group {
+        &self.group
     }
 
     /// Program counters.
@@ -303,7 +338,10 @@ impl Program {
             (self.user_link(now_us), flags::USER_LINK),
             (v.battery_low, flags::BATTERY_LOW),
             (v.over_temperature, flags::OVER_TEMPERATURE),
-            (self.maneuver.active(), flags::MANEUVER),
+            (
+                self.maneuver.active() || self.group.active(),
+                flags::MANEUVER,
+            ),
             (self.lbc_error(now_us), flags::LBC_ERROR),
             (v.have_pose && fresh, flags::POSE_VALID),
         ] {
@@ -316,6 +354,7 @@ impl Program {
             _ => (0, 0),
         };
         let sat16 = |x: u64| u16::try_from(x).unwrap_or(u16::MAX);
+        let g = self.group.status();
         Status {
             phase: self.phase as u8,
             flags: f,
@@ -332,6 +371,10 @@ impl Program {
             bringups: self.counters.bringups.min(0xFFFF) as u16,
             lbc_failures: self.lbc_failures.min(0xFFFF) as u16,
             uptime_s: (now_us.saturating_sub(self.started_us.unwrap_or(now_us)) / 1_000_000) as u16,
+            group_kind: self.group.params().kind(),
+            group_phase: g.phase.bits(),
+            group_converged: g.converged,
+            group_error_units: g.error_units,
         }
     }
 
@@ -492,7 +535,7 @@ impl Program {
                         self.respond(id, Tag::StreamFormat as u8, &Reply::StreamFormat(bits));
                     }
                     Some(Owner::Led(g, r)) => self.leds_sent = Some((g, r)),
-                    Some(Owner::Maneuver | Owner::Stop | Owner::Ping) | None => {}
+                    Some(Owner::Maneuver | Owner::Group | Owner::Stop | Owner::Ping) | None => {}
                 }
             }
             LinkEvent::Failed {
@@ -526,6 +569,12 @@ impl Program {
                         log.log(now, LogEvent::ManeuverAborted);
                         self.notice(now, Notice::ManeuverAborted);
                     }
+                    self.check_refused_motion(now, &command, &failure, log);
+                }
+                Some(Owner::Group) => {
+                    // The next sample sends again; a refusal means the LBC reset.
+                    self.group.unsent();
+                    self.camera.unsent();
                     self.check_refused_motion(now, &command, &failure, log);
                 }
                 Some(Owner::Ping) if failure == Failure::TimedOut => {
@@ -698,6 +747,7 @@ impl Program {
             self.maneuver.abort();
             log.log(now, LogEvent::ManeuverAborted);
         }
+        self.stop_group(now, log);
         if let Some(m) = self.mac.as_mut() {
             m.clear_state();
         }
@@ -753,19 +803,76 @@ impl Program {
                 None => {}
             }
         }
+        let id = self.mac.as_ref().map_or(0, |m| m.id().get());
+        if s.position.is_some() && self.phase == Phase::Running && self.drive_enabled {
+            self.step_group(now, id);
+        }
         if let Some(m) = self.mac.as_mut() {
             let v = &self.vehicle;
-            let phase = if self.maneuver.active() { 1 } else { 0 };
+            let mode = if self.group.active() {
+                self.group.mode(id)
+            } else {
+                Mode {
+                    role: Role::Idle,
+                    phase: u8::from(self.maneuver.active()),
+                }
+            };
             m.set_state(CarState {
                 x: v.x,
                 y: v.y,
                 heading_mrad: v.heading,
                 velocity_mm_s: v.velocity,
-                mode: Mode {
-                    role: Role::Idle,
-                    phase,
-                },
+                mode,
             });
+        }
+    }
+
+    /// One control period of the group maneuver; its command goes to the LBC when the
+    /// group's gate lets it through and no earlier one is still queued.
+    fn step_group(&mut self, now: u64, id: u8) {
+        let v = &self.vehicle;
+        let own = maneuvers::CarPose {
+            x: v.x,
+            y: v.y,
+            heading_mrad: v.heading,
+            velocity_mm_s: v.velocity,
+        };
+        let may_send = !self.owned.iter().any(|(_, o)| matches!(o, Owner::Group));
+        let table = self.mac.as_ref().map(CarMac::neighbours);
+        if let Some(m) = self.group.step(now, id, own, table, may_send) {
+            if !self.send(now, lbc_command(m), Owner::Group) {
+                self.group.unsent();
+            }
+        }
+        // Camera follow: the controller holds; the camera's law drives through the same gate
+        // rules and the same LBC client slot.
+        if let maneuvers::ManeuverParams::CameraFollow {
+            marker,
+            distance_units,
+            speed_mm_s,
+        } = self.group.params()
+        {
+            self.camera.start_follow(marker, distance_units, speed_mm_s);
+            if let Some(c) = self.camera.step(now, may_send) {
+                let m = maneuvers::Command::MoveSv {
+                    steering_mrad: c.steering_mrad,
+                    velocity_mm_s: c.velocity_mm_s,
+                };
+                if !self.send(now, lbc_command(m), Owner::Group) {
+                    self.camera.unsent();
+                }
+            }
+        } else if self.camera.following() {
+            self.camera.stop_follow();
+        }
+    }
+
+    /// Stops a running group maneuver (the caller stops the car).
+    fn stop_group<S: LogSink + ?Sized>(&mut self, now: u64, log: &mut S) {
+        self.camera.stop_follow();
+        if self.group.active() {
+            self.group.stop();
+            log.log(now, LogEvent::GroupStopped);
         }
     }
 
@@ -814,6 +921,7 @@ impl Program {
                     self.maneuver.abort();
                     log.log(now, LogEvent::ManeuverAborted);
                 }
+                self.stop_group(now, log);
                 let _ = self.send(now, Command::Stop, Owner::Stop);
                 self.notice(now, Notice::UserLinkLost);
             }
@@ -913,6 +1021,7 @@ impl Program {
                 return Some(Refusal::UnsupportedVersion)
             }
             Err(console::DecodeError::UnknownTag { .. }) => return Some(Refusal::UnknownRequest),
+            Err(console::DecodeError::Params { .. }) => return Some(Refusal::BadArgument),
             Err(_) => return Some(Refusal::Malformed),
         };
         if !authorized && req != Request::Status {
@@ -929,13 +1038,24 @@ impl Program {
                 };
                 self.respond(id, Tag::Stats as u8, &Reply::Stats { page, values });
             }
+            Request::Camera { blob } => {
+                let report = self.camera.report(blob);
+                self.respond(id, Tag::Camera as u8, &Reply::Camera(report));
+            }
             Request::Lbc(cmd) => {
                 if is_motion(&cmd) && !self.drive_enabled {
                     return Some(Refusal::DriveDisabled);
                 }
-                if (is_motion(&cmd) || cmd == Command::Stop) && self.maneuver.active() {
-                    self.maneuver.abort();
-                    log.log(now, LogEvent::ManeuverAborted);
+                if is_motion(&cmd) || cmd == Command::Stop {
+                    if self.maneuver.active() {
+                        self.maneuver.abort();
+                        log.log(now, LogEvent::ManeuverAborted);
+                    }
+                    self.stop_group(now, log);
+                }
+                // The user takes the drive away from a group maneuver too.
+                if matches!(cmd, Command::Drds | Command::Init) {
+                    self.stop_group(now, log);
                 }
                 if !self.send(now, cmd, Owner::Console(id)) {
                     return Some(Refusal::Busy);
@@ -968,6 +1088,7 @@ impl Program {
                     return Some(Refusal::DriveDisabled);
                 }
                 let n = points.len() as u8;
+                self.stop_group(now, log);
                 if let Some(p) = self.maneuver.start(points) {
                     self.drive_to(now, p);
                 }
@@ -979,8 +1100,40 @@ impl Program {
                     self.maneuver.abort();
                     log.log(now, LogEvent::ManeuverAborted);
                 }
+                self.stop_group(now, log);
                 let _ = self.send(now, Command::Stop, Owner::Stop);
                 self.respond(id, Tag::ManeuverStop as u8, &Reply::ManeuverStopped);
+            }
+            Request::GroupStart(params) => {
+                if self.phase != Phase::Running {
+                    return Some(Refusal::NotReady);
+                }
+                if !self.drive_enabled {
+                    return Some(Refusal::DriveDisabled);
+                }
+                if self.maneuver.active() {
+                    self.maneuver.abort();
+                    log.log(now, LogEvent::ManeuverAborted);
+                }
+                self.stop_group(now, log);
+                if params == maneuvers::ManeuverParams::Idle {
+                    let _ = self.send(now, Command::Stop, Owner::Stop);
+                } else {
+                    self.group.start(params);
+                    log.log(
+                        now,
+                        LogEvent::GroupStarted {
+                            kind: params.kind(),
+                        },
+                    );
+                }
+                self.respond(id, Tag::GroupStart as u8, &Reply::GroupStarted);
+            }
+            Request::GroupWaypoint { x, y } => {
+                if !self.group.set_waypoint(x, y) {
+                    return Some(Refusal::NoFormation);
+                }
+                self.respond(id, Tag::GroupWaypoint as u8, &Reply::GroupWaypointSet);
             }
         }
         None

@@ -1,13 +1,16 @@
 //! The UBC demo program (seed chapter 4): it brings the LBC up, keeps the vehicle state from
 //! the 30 Hz stream, serves the user's console over the radio, runs a go-to-points maneuver
-//! and stops the car when a link is lost.
+//! or a group maneuver with the other cars ([`group`]) or behind a leader seen by the camera
+//! ([`camera`]), and stops the car when a link is lost.
 //!
 //! Everything here is board-independent and sans-IO: the board layer hands [`Program::poll`]
 //! a [`Clock`], the two UARTs as [`BytePort`]s and a [`LogSink`], and sleeps until
 //! [`Program::poll_at`]. Host tests drive the same code with fakes and the emulated LBC.
 
+pub mod camera;
 mod config;
 pub mod console;
+pub mod group;
 mod leds;
 mod machine;
 mod maneuver;

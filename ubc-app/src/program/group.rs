@@ -1,0 +1,368 @@
+//! Group maneuvers on the car: the `maneuvers` controller fed from the STREAM pose and the
+//! radio neighbour table, and a gate that decides which of its commands go to the LBC.
+//!
+//! The controller answers every 30 Hz sample, but the LBC's command UART (115200 bps, served
+//! by a low-priority task, seed 2.1.8) also carries the console's commands and the LED updates
+//! and every command waits for its answer, so a command is sent only when it differs
+//! meaningfully from the last one sent (another kind, another `MOVE_XY` point, or a steering
+//! or velocity change beyond [`STEER_STEP_MRAD`] / [`VELOCITY_STEP_MM_S`]), at most every
+//! [`MIN_INTERVAL_US`], and repeated every [`REFRESH_US`] otherwise. A change to `STOP` goes
+//! out at once. For a camera-follow maneuver the camera part of the program drives the car, so
+//! the group sends nothing and only reports.
+
+use lbc_link::{Command, Position, SteerVelocity, SteeringAngle, Velocity};
+use maneuvers::{
+    CarPose, Command as Motion, Controller, ControllerConfig, Inputs, ManeuverParams, Neighbour,
+    Status, MAX_NEIGHBOURS,
+};
+use radio_mac::{Address, Mode, NeighbourTable, Role};
+
+/// Smallest time between two group commands to the LBC, microseconds (10 Hz).
+pub const MIN_INTERVAL_US: u64 = 100_000;
+/// An unchanged command is sent again after this long, microseconds.
+pub const REFRESH_US: u64 = 1_000_000;
+/// Steering change that is worth a new `MOVE_SV`, mrad.
+pub const STEER_STEP_MRAD: i16 = 20;
+/// Velocity change that is worth a new `MOVE_SV`, mm/s.
+pub const VELOCITY_STEP_MM_S: i16 = 10;
+
+/// The group maneuver of this car.
+#[derive(Debug, Clone)]
+pub struct Group {
+    controller: Controller,
+    params: ManeuverParams,
+    status: Status,
+    /// Last command handed to the LBC client and when.
+    sent: Option<(Motion, u64)>,
+}
+
+impl Default for Group {
+    fn default() -> Self {
+        Self {
+            controller: Controller::new(ControllerConfig::default()),
+            params: ManeuverParams::Idle,
+            status: Status::default(),
+            sent: None,
+        }
+    }
+}
+
+/// Whether `next` is worth sending after `last`.
+fn differs(last: Motion, next: Motion) -> bool {
+    match (last, next) {
+        (
+            Motion::MoveSv {
+                steering_mrad: s0,
+                velocity_mm_s: v0,
+            },
+            Motion::MoveSv {
+                steering_mrad: s1,
+                velocity_mm_s: v1,
+            },
+        ) => {
+            (s1 - s0).abs() >= STEER_STEP_MRAD
+                || (v1 - v0).abs() >= VELOCITY_STEP_MM_S
+                // Starting, stopping or reversing always is.
+                || v0.signum() != v1.signum()
+        }
+        (a, b) => a != b,
+    }
+}
+
+/// The LBC command for a controller command (the controller keeps within the LBC's ranges;
+/// a value outside them becomes `STOP`).
+pub fn lbc_command(m: Motion) -> Command {
+    match m {
+        Motion::Stop => Command::Stop,
+        Motion::MoveXy { x, y } => Position::new(x, y).map_or(Command::Stop, Command::MoveXy),
+        Motion::MoveSv {
+            steering_mrad,
+            velocity_mm_s,
+        } => match (
+            SteeringAngle::new(steering_mrad),
+            Velocity::new(velocity_mm_s),
+        ) {
+            (Ok(steering), Ok(velocity)) => Command::MoveSv(SteerVelocity { steering, velocity }),
+            _ => Command::Stop,
+        },
+    }
+}
+
+impl Group {
+    /// Starts `params` (replacing the running maneuver); `Idle` stops.
+    pub fn start(&mut self, params: ManeuverParams) {
+        self.controller.start(params);
+        self.params = params;
+        self.status = Status::default();
+        self.sent = None;
+    }
+
+    /// Stops the maneuver (the caller stops the car).
+    pub fn stop(&mut self) {
+        self.start(ManeuverParams::Idle);
+    }
+
+    /// True while a maneuver runs.
+    #[must_use]
+    pub fn active(&self) -> bool {
+        self.params != ManeuverParams::Idle
+    }
+
+    /// The running maneuver's parameters (`Idle`: none).
+    #[must_use]
+    pub fn params(&self) -> ManeuverParams {
+        self.params
+    }
+
+    /// The controller's status after the last step.
+    #[must_use]
+    pub fn status(&self) -> Status {
+        self.status
+    }
+
+    /// Next waypoint of a formation leader; `false` when no formation runs.
+    pub fn set_waypoint(&mut self, x: u16, y: u16) -> bool {
+        if matches!(self.params, ManeuverParams::Formation { .. }) {
+            self.controller.set_waypoint(x, y);
+            true
+        } else {
+            false
+        }
+    }
+
+    /// Role and phase to broadcast: the formation's leader leads, every other car in a
+    /// maneuver follows.
+    #[must_use]
+    pub fn mode(&self, id: u8) -> Mode {
+        let role = match self.params {
+            ManeuverParams::Idle => Role::Idle,
+            ManeuverParams::Formation { leader, .. } if leader == id => Role::Leader,
+            _ => Role::Follower,
+        };
+        Mode {
+            role,
+            phase: self.status.phase.bits(),
+        }
+    }
+
+    /// One control period at a STREAM sample: steps the controller with this car's pose and
+    /// its neighbours' broadcast poses, and returns the command to send now, if any.
+    /// `may_send` is false while an earlier group command is still with the LBC client.
+    pub fn step<const N: usize>(
+        &mut self,
+        now_us: u64,
+        id: u8,
+        own: CarPose,
+        table: Option<&NeighbourTable<N>>,
+        may_send: bool,
+    ) -> Option<Motion> {
+        if !self.active() {
+            return None;
+        }
+        let mut neighbours: heapless::Vec<Neighbour, MAX_NEIGHBOURS> = heapless::Vec::new();
+        for n in table.into_iter().flat_map(NeighbourTable::iter) {
+            let (Address::Car(car), Some((s, at))) = (n.addr, n.state) else {
+                continue;
+            };
+            let age = now_us.saturating_sub(at);
+            let _ = neighbours.push(Neighbour {
+                id: car.get(),
+                pose: CarPose {
+                    x: s.x,
+                    y: s.y,
+                    heading_mrad: s.heading_mrad,
+                    velocity_mm_s: s.velocity_mm_s,
+                },
+                age_us: u32::try_from(age).unwrap_or(u32::MAX),
+            });
+        }
+        let out = self.controller.step(&Inputs {
+            now_us,
+            id,
+            own,
+            neighbours: &neighbours,
+        });
+        self.status = out.status;
+        if matches!(self.params, ManeuverParams::CameraFollow { .. }) {
+            // The camera part of the program drives the car; the controller only holds.
+            return None;
+        }
+        let due = match self.sent {
+            None => true,
+            Some((last, at)) => {
+                let since = now_us.saturating_sub(at);
+                (out.command == Motion::Stop && last != Motion::Stop)
+                    || (since >= MIN_INTERVAL_US && differs(last, out.command))
+                    || since >= REFRESH_US
+            }
+        };
+        if due && may_send {
+            self.sent = Some((out.command, now_us));
+            Some(out.command)
+        } else {
+            None
+        }
+    }
+
+    /// The command handed over by the last [`Group::step`] did not reach the LBC: send it
+    /// again at the next chance.
+    pub fn unsent(&mut self) {
+        self.sent = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use maneuvers::Phase;
+
+    const TABLE: Option<&NeighbourTable<4>> = None;
+
+    fn pose(x: u16, y: u16, heading_mrad: u16) -> CarPose {
+        CarPose {
+            x,
+            y,
+            heading_mrad,
+            velocity_mm_s: 0,
+        }
+    }
+
+    #[test]
+    fn idle_sends_nothing() {
+        let mut g = Group::default();
+        assert_eq!(g.step(0, 1, pose(100, 100, 0), TABLE, true), None);
+        assert_eq!(g.mode(1), Mode::default());
+    }
+
+    #[test]
+    fn goto_commands_are_rate_limited_and_refreshed() {
+        let mut g = Group::default();
+        g.start(ManeuverParams::GoTo {
+            x: 300,
+            y: 600,
+            speed_mm_s: 250,
+        });
+        let first = g.step(0, 1, pose(300, 400, 1571), TABLE, true);
+        assert_eq!(
+            first,
+            Some(Motion::MoveSv {
+                steering_mrad: 0,
+                velocity_mm_s: 250
+            })
+        );
+        assert_eq!(g.mode(1).role, Role::Follower);
+        assert_eq!(g.mode(1).phase, Phase::Approach.bits());
+        // The same command 33 ms later: nothing.
+        assert_eq!(g.step(33_000, 1, pose(300, 410, 1571), TABLE, true), None);
+        // Facing away a little: a different steering, but within the minimum interval.
+        assert_eq!(g.step(66_000, 1, pose(300, 420, 1400), TABLE, true), None);
+        let next = g.step(100_000, 1, pose(300, 420, 1400), TABLE, true);
+        assert!(
+            matches!(next, Some(Motion::MoveSv { steering_mrad, .. }) if steering_mrad > 100),
+            "{next:?}"
+        );
+        // Unchanged for a second: sent again.
+        assert_eq!(g.step(600_000, 1, pose(300, 420, 1400), TABLE, true), None);
+        assert!(g
+            .step(1_100_000, 1, pose(300, 420, 1400), TABLE, true)
+            .is_some());
+        // Not while the client still holds one, and again once it may.
+        assert_eq!(
+            g.step(2_200_000, 1, pose(300, 420, 1400), TABLE, false),
+            None
+        );
+        assert!(g
+            .step(2_233_000, 1, pose(300, 420, 1400), TABLE, true)
+            .is_some());
+    }
+
+    #[test]
+    fn arrival_stops_at_once() {
+        let mut g = Group::default();
+        g.start(ManeuverParams::GoTo {
+            x: 300,
+            y: 600,
+            speed_mm_s: 250,
+        });
+        assert!(g.step(0, 1, pose(300, 590, 1571), TABLE, true).is_some());
+        assert_eq!(
+            g.step(10_000, 1, pose(300, 597, 1571), TABLE, true),
+            Some(Motion::Stop)
+        );
+        assert!(g.status().converged);
+        assert_eq!(g.status().phase, Phase::Hold);
+    }
+
+    #[test]
+    fn waypoints_only_for_formations() {
+        let mut g = Group::default();
+        assert!(!g.set_waypoint(10, 10));
+        g.start(ManeuverParams::Formation {
+            shape: maneuvers::Shape::Line,
+            leader: 3,
+            slot: None,
+            spacing_units: 60,
+            speed_mm_s: 100,
+        });
+        assert!(g.set_waypoint(300, 300));
+        assert_eq!(g.mode(3).role, Role::Leader);
+        assert_eq!(g.mode(4).role, Role::Follower);
+        let cmd = g.step(0, 3, pose(100, 300, 0), TABLE, true);
+        assert!(
+            matches!(
+                cmd,
+                Some(Motion::MoveSv {
+                    velocity_mm_s: 100,
+                    ..
+                })
+            ),
+            "{cmd:?}"
+        );
+    }
+
+    #[test]
+    fn camera_follow_leaves_the_driving_to_the_camera() {
+        let mut g = Group::default();
+        g.start(ManeuverParams::CameraFollow {
+            marker: 2,
+            distance_units: 80,
+            speed_mm_s: 150,
+        });
+        assert!(g.active());
+        assert_eq!(g.step(0, 1, pose(100, 100, 0), TABLE, true), None);
+        assert_eq!(g.step(2_000_000, 1, pose(100, 100, 0), TABLE, true), None);
+        assert_eq!(g.status().phase, Phase::Hold);
+    }
+
+    #[test]
+    fn small_changes_are_not_sent() {
+        let a = Motion::MoveSv {
+            steering_mrad: 100,
+            velocity_mm_s: 200,
+        };
+        let b = Motion::MoveSv {
+            steering_mrad: 110,
+            velocity_mm_s: 205,
+        };
+        assert!(!differs(a, b));
+        assert!(differs(
+            a,
+            Motion::MoveSv {
+                steering_mrad: 100,
+                velocity_mm_s: -200
+            }
+        ));
+        assert!(differs(a, Motion::Stop));
+        assert!(differs(
+            Motion::MoveXy { x: 1, y: 2 },
+            Motion::MoveXy { x: 1, y: 3 }
+        ));
+        assert_eq!(
+            lbc_command(Motion::MoveSv {
+                steering_mrad: 600,
+                velocity_mm_s: 0
+            }),
+            Command::Stop
+        );
+    }
+}
