@@ -2,7 +2,9 @@
 //! system library is needed, and the file opens in any browser.
 //!
 //! The arena (1500 x 2000 mm) is drawn with +Y up; each car's track is a polyline in its own
-//! colour, with a circle at the start, a square at the end and crosses on its targets.
+//! colour, with a circle at the start, a square at the end and crosses on its targets. An
+//! [`Overlay`] adds the circles of circle maneuvers (dashed) and numbers every track where
+//! each phase of the experiment began.
 
 use crate::metrics::{Sample, ARENA_MM};
 use std::fmt::Write;
@@ -26,12 +28,26 @@ pub struct Track<'a> {
     pub targets: &'a [(f64, f64)],
 }
 
+/// Extra marks: where phases began and the circles of circle maneuvers.
+#[derive(Debug, Clone, Default)]
+pub struct Overlay {
+    /// `(phase number, start time s)`: a numbered dot on each track at that time.
+    pub phase_starts: Vec<(usize, f64)>,
+    /// `(centre mm, radius mm)`, drawn dashed.
+    pub circles: Vec<((f64, f64), f64)>,
+}
+
 fn px(x_mm: f64, y_mm: f64) -> (f64, f64) {
     (MARGIN + x_mm * SCALE, MARGIN + (ARENA_MM.1 - y_mm) * SCALE)
 }
 
 /// The SVG document.
 pub fn svg(title: &str, tracks: &[Track<'_>]) -> String {
+    svg_with(title, tracks, &Overlay::default())
+}
+
+/// The SVG document with an [`Overlay`].
+pub fn svg_with(title: &str, tracks: &[Track<'_>], overlay: &Overlay) -> String {
     let w = ARENA_MM.0 * SCALE + 2.0 * MARGIN;
     let h = ARENA_MM.1 * SCALE + 2.0 * MARGIN + 20.0;
     let mut s = String::new();
@@ -46,6 +62,14 @@ pub fn svg(title: &str, tracks: &[Track<'_>]) -> String {
         ARENA_MM.0 * SCALE,
         ARENA_MM.1 * SCALE
     );
+    for &((cx, cy), r) in &overlay.circles {
+        let (x, y) = px(cx, cy);
+        let _ = writeln!(
+            s,
+            r##"<circle cx="{x:.1}" cy="{y:.1}" r="{:.1}" fill="none" stroke="#888" stroke-dasharray="6 4"/>"##,
+            r * SCALE
+        );
+    }
     for (i, t) in tracks.iter().enumerate() {
         let c = COLOURS[i % COLOURS.len()];
         let mut pts = String::new();
@@ -75,6 +99,17 @@ pub fn svg(title: &str, tracks: &[Track<'_>]) -> String {
                 x - 4.0,
                 y - 4.0
             );
+        }
+        for &(phase, start) in overlay.phase_starts.iter().filter(|(n, _)| *n > 1) {
+            if let Some(p) = t.samples.iter().find(|p| p.t >= start) {
+                let (x, y) = px(p.x_mm, p.y_mm);
+                let _ = writeln!(
+                    s,
+                    r##"<circle cx="{x:.1}" cy="{y:.1}" r="7" fill="#fff" stroke="{c}" stroke-width="2"/><text x="{:.1}" y="{:.1}" font-size="9" text-anchor="middle" fill="{c}">{phase}</text>"##,
+                    x,
+                    y + 3.0
+                );
+            }
         }
         for &(tx, ty) in t.targets {
             let (x, y) = px(tx, ty);
@@ -145,5 +180,40 @@ mod tests {
         assert!(doc.contains("a&lt;b"));
         assert!(doc.contains(">car 3<"));
         assert_eq!(doc.matches("<path ").count(), 1);
+        assert_eq!(doc.matches("stroke-dasharray").count(), 0);
+    }
+
+    #[test]
+    fn overlay_marks_phases_and_circles() {
+        let samples: Vec<Sample> = (0..10)
+            .map(|i| Sample {
+                t: f64::from(i),
+                x_mm: 100.0 * f64::from(i),
+                y_mm: 0.0,
+                heading_mrad: 0.0,
+                v_mm_s: 0.0,
+            })
+            .collect();
+        let overlay = Overlay {
+            phase_starts: vec![(1, 0.0), (2, 4.5)],
+            circles: vec![((750.0, 1000.0), 250.0)],
+        };
+        let doc = svg_with(
+            "p",
+            &[Track {
+                id: 1,
+                samples: &samples,
+                targets: &[],
+            }],
+            &overlay,
+        );
+        assert_eq!(doc.matches("stroke-dasharray").count(), 1);
+        assert!(doc.contains(r#"r="75.0""#), "{doc}");
+        // Phase 2 is marked at the first sample from 4.5 s: x = 500 mm -> 170 px.
+        assert!(
+            doc.contains(r#"<circle cx="170.0" cy="620.0" r="7""#),
+            "{doc}"
+        );
+        assert!(doc.contains(">2</text>"));
     }
 }

@@ -8,10 +8,12 @@
 //! the thread that called [`World::start`]. Dropping the [`World`] stops the engine, kills
 //! every QEMU and removes every socket, however the caller ends.
 
+use crate::camera::CarPose;
+use crate::camera_feed::{ram_file_name, CameraFeed, FeedConfig, FeedTarget};
 use crate::hub::{EndpointSpec, Hub, HubConfig, HubStats, NodeConfig};
 use crate::radio_medium::MediumParams;
 use lbc_emu::{FaultConfig, Lbc, LbcConfig, LbcStats, Pose};
-use qemu_harness::{Qemu, SocketSpec, UartAttach};
+use qemu_harness::{Qemu, SharedRamSpec, SocketSpec, UartAttach};
 use radio_mac::{Address, CarId, CarState, Event, GroundConfig, GroundStation, Key, RequestHandle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -91,6 +93,8 @@ pub struct WorldConfig {
     pub key: [u8; 16],
     /// How long to wait for each firmware's banner.
     pub boot_timeout: Duration,
+    /// Camera frames into every car's frame grabber (`camera_feed`); `None`: no camera.
+    pub camera: Option<FeedConfig>,
 }
 
 impl WorldConfig {
@@ -105,6 +109,7 @@ impl WorldConfig {
             seed: 1,
             key: ubc_app::program::DEFAULT_KEY,
             boot_timeout: Duration::from_secs(30),
+            camera: None,
         }
     }
 }
@@ -243,6 +248,7 @@ struct CarEngine {
     states_heard: u64,
 }
 
+#[derive(Debug)]
 enum Outcome {
     Reply(u8, Vec<u8>),
     Failed,
@@ -288,7 +294,9 @@ impl Drop for DirGuard {
 
 /// A running world. Keep it on the thread that started it (its QEMU processes belong to it).
 pub struct World {
-    // Field order is drop order: QEMU first, then the hub, the engine, the sockets.
+    // Field order is drop order: the camera feed and QEMU first, then the hub, the engine,
+    // the sockets.
+    camera: Option<CameraFeed>,
     qemus: Vec<(u8, Qemu)>,
     hub: Option<Hub>,
     shared: Arc<Shared>,
@@ -390,6 +398,7 @@ impl World {
             .name("arena-world".into())
             .spawn(move || run_engine(&s))?;
         let mut world = World {
+            camera: None,
             qemus: Vec::new(),
             hub: None,
             shared,
@@ -397,6 +406,7 @@ impl World {
             ids,
             _dir: dir,
         };
+        let mut feed_targets = Vec::new();
         let mut nodes = vec![NodeConfig::new(
             "ground",
             EndpointSpec::UnixListen(ground_path),
@@ -405,9 +415,17 @@ impl World {
         for c in &cfg.cars {
             let lbc = world._dir.0.join(format!("car{}-lbc.sock", c.id));
             let radio = world._dir.0.join(format!("car{}-radio.sock", c.id));
-            let qemu = Qemu::builder(&cfg.firmware)
+            let mut builder = Qemu::builder(&cfg.firmware)
                 .lbc(UartAttach::Connect(SocketSpec::Unix(lbc)))
-                .radio(UartAttach::Listen(SocketSpec::Unix(radio.clone())))
+                .radio(UartAttach::Listen(SocketSpec::Unix(radio.clone())));
+            if let Some(feed) = &cfg.camera {
+                let spec = SharedRamSpec::new(world._dir.0.join(ram_file_name(c.id)));
+                let target = FeedTarget::create(c.id, spec.path.clone(), spec.len(), feed)
+                    .map_err(|e| WorldError::Io(io::Error::other(e)))?;
+                feed_targets.push(target);
+                builder = builder.shared_ram(spec);
+            }
+            let qemu = builder
                 .spawn()
                 .map_err(|source| WorldError::Qemu { id: c.id, source })?;
             world.qemus.push((c.id, qemu));
@@ -428,7 +446,38 @@ impl World {
             ..HubConfig::default()
         };
         world.hub = Some(Hub::start(hub_cfg, nodes).map_err(WorldError::Hub)?);
+        if let Some(feed) = cfg.camera {
+            let shared = world.shared.clone();
+            let poses = move || {
+                shared
+                    .lock()
+                    .cars
+                    .iter()
+                    .map(|c| {
+                        let p = c.lbc.vehicle().pose();
+                        CarPose {
+                            id: c.id,
+                            x_mm: p.x_mm as f32,
+                            y_mm: p.y_mm as f32,
+                            yaw_rad: p.heading_rad as f32,
+                        }
+                    })
+                    .collect()
+            };
+            world.camera = Some(CameraFeed::start(feed, feed_targets, poses)?);
+        }
         Ok(world)
+    }
+
+    /// The directory holding the world's sockets and, with a camera, each car's RAM file
+    /// (`car<ID>-ram`, see `camera_feed`); removed when the world ends.
+    pub fn run_dir(&self) -> &Path {
+        &self._dir.0
+    }
+
+    /// The camera feed's counters, if the world has a camera.
+    pub fn camera_stats(&self) -> Option<crate::camera_feed::FeedStats> {
+        self.camera.as_ref().map(CameraFeed::stats)
     }
 
     /// Car IDs in configuration order.
@@ -544,12 +593,40 @@ impl World {
         }
     }
 
+    /// Sends a console request to car `id` without waiting: `Ok(None)` when the ground
+    /// station is busy with another request (it carries one authenticated command at a time;
+    /// try again later), else the [`PendingReply`] to poll.
+    pub fn try_request(&self, id: u8, req: &Request) -> Result<Option<PendingReply>, WorldError> {
+        let car = CarId::new(id).ok_or(WorldError::BadCar { id })?;
+        let mut buf = [0u8; console::MAX_PAYLOAD];
+        let n = req.encode(&mut buf).map_err(WorldError::Encode)?;
+        let mut e = self.shared.lock();
+        if self.shared.stop.load(Ordering::Relaxed) {
+            return Err(WorldError::EngineStopped);
+        }
+        let now = self.shared.now_us();
+        match e
+            .ground
+            .command(now, Address::Car(car), req.tag() as u8, &buf[..n])
+        {
+            Ok(h) => {
+                let (tx, rx) = mpsc::channel();
+                e.waiters.push((h, tx));
+                e.counters.requests += 1;
+                Ok(Some(PendingReply { id, rx }))
+            }
+            Err(radio_mac::SendError::Busy) | Err(radio_mac::SendError::TxQueueFull) => Ok(None),
+            Err(err) => Err(WorldError::Send(err)),
+        }
+    }
+
     /// Stops everything now (also done on drop); returns the hub's final counters.
     pub fn shutdown(mut self) -> Option<HubStats> {
         self.stop()
     }
 
     fn stop(&mut self) -> Option<HubStats> {
+        self.camera = None;
         for (_, q) in &mut self.qemus {
             let _ = q.kill();
         }
@@ -566,6 +643,34 @@ impl World {
 impl Drop for World {
     fn drop(&mut self) {
         self.stop();
+    }
+}
+
+/// A console request on its way (see [`World::try_request`]).
+#[derive(Debug)]
+pub struct PendingReply {
+    id: u8,
+    rx: Receiver<Outcome>,
+}
+
+impl PendingReply {
+    /// The car asked.
+    pub fn car(&self) -> u8 {
+        self.id
+    }
+
+    /// The outcome once it is known: the decoded reply, or `NoReply` after every
+    /// retransmission failed (or the world stopped).
+    pub fn poll(&self) -> Option<Result<Reply, WorldError>> {
+        match self.rx.try_recv() {
+            Ok(Outcome::Reply(tag, payload)) => {
+                Some(Reply::decode(tag, &payload).map_err(WorldError::BadReply))
+            }
+            Ok(Outcome::Failed) | Err(mpsc::TryRecvError::Disconnected) => {
+                Some(Err(WorldError::NoReply { id: self.id }))
+            }
+            Err(mpsc::TryRecvError::Empty) => None,
+        }
     }
 }
 

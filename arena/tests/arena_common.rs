@@ -7,9 +7,53 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
+/// What a run left behind.
+#[derive(Debug)]
+pub struct Outputs {
+    /// The summary.
+    pub summary: Summary,
+    /// `summary.json`, parsed.
+    pub doc: Value,
+    /// `phases.csv` rows: (t, phase, error_mm).
+    pub errors: Vec<(f64, usize, f64)>,
+    /// `events.jsonl`, parsed.
+    pub events: Vec<Value>,
+}
+
+impl Outputs {
+    /// Times (s since the first phase started, like `phases.csv`) at which a car reported that
+    /// the firmware stopped it: it lost its LBC stream or the user link. On a real-time
+    /// simulation this happens when the whole machine stalls for longer than the firmware's
+    /// stream timeout (300 ms).
+    pub fn stalls(&self) -> Vec<f64> {
+        let t0 = self
+            .events
+            .iter()
+            .find(|e| e["event"] == "phase-started")
+            .and_then(|e| e["t"].as_f64())
+            .unwrap_or(0.0);
+        self.events
+            .iter()
+            .filter(|e| {
+                e["event"]
+                    .as_str()
+                    .is_some_and(|n| n.contains("LbcLost") || n.contains("UserLinkLost"))
+            })
+            .filter_map(|e| e["t"].as_f64())
+            .map(|t| t - t0)
+            .collect()
+    }
+}
+
 /// Runs `toml` with the real firmware, checks every output parses, returns the summary
-/// document and the out dir.
+/// and the summary document.
 pub fn run_and_check(toml: &str, tag: &str) -> (Summary, Value) {
+    let o = run_full(toml, tag);
+    (o.summary, o.doc)
+}
+
+/// Runs `toml` with the real firmware, checks every output parses, returns them.
+pub fn run_full(toml: &str, tag: &str) -> Outputs {
     let exp = Experiment::parse(toml).expect("experiment parses");
     let elf = qemu_harness::firmware_elf().expect("firmware ELF");
     let out: PathBuf =
@@ -30,9 +74,33 @@ pub fn run_and_check(toml: &str, tag: &str) -> (Summary, Value) {
     .expect("experiment runs");
     assert!(lines >= 1, "no progress line");
     let doc = check_outputs(&out, &exp);
+    let events = std::fs::read_to_string(out.join("events.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let csv = std::fs::read_to_string(out.join("phases.csv")).unwrap();
+    let mut rows = csv.lines();
+    assert_eq!(rows.next(), Some("t,phase,error_mm"));
+    let errors = rows
+        .map(|r| {
+            let c: Vec<&str> = r.split(',').collect();
+            assert_eq!(c.len(), 3, "{r}");
+            (
+                c[0].parse().unwrap(),
+                c[1].parse().unwrap(),
+                c[2].parse().unwrap(),
+            )
+        })
+        .collect();
     nothing_left_behind();
     let _ = std::fs::remove_dir_all(&out);
-    (summary, doc)
+    Outputs {
+        summary,
+        doc,
+        errors,
+        events,
+    }
 }
 
 fn check_outputs(out: &Path, exp: &Experiment) -> Value {
@@ -54,6 +122,7 @@ fn check_outputs(out: &Path, exp: &Experiment) -> Value {
         assert!(v["t"].is_number() && v["event"].is_string(), "{line}");
     }
     assert!(events.contains("\"maneuver-started\""));
+    assert!(events.contains("\"phase-started\""));
     let svg = std::fs::read_to_string(out.join("trajectories.svg")).unwrap();
     assert!(svg.starts_with("<svg ") && svg.trim_end().ends_with("</svg>"));
     assert_eq!(svg.matches("<polyline").count(), exp.cars.len());

@@ -7,6 +7,11 @@
 //!   `qemu-system-riscv32 -icount shift=0`.
 //! - `host-decode`: `cargo bench -p lbc-link --bench decode`.
 //! - `radio`: `cargo bench -p arena --bench radio`.
+//! - `softcore`: the soft core (verilator-tb): CPI on the firmware, simulation speed, and area
+//!   from yosys `synth_ice40 -dsp`.
+//! - `fw-vision`: RV32 instructions per pixel of the vision pipeline on a rendered 640x480
+//!   frame, counted by the `bench_vision` firmware binary reading the frame in place from its
+//!   frame-grabber window (QEMU shared RAM written by the host, `-icount shift=0`).
 //!
 //! `--only NAME` runs one of them; `--out FILE` also writes the markdown to a file.
 
@@ -63,18 +68,24 @@ pub enum Bench {
     Radio,
     /// Synthetic camera render rate and host vision rate.
     Camera,
+    /// Instructions per pixel of the vision pipeline on the firmware (QEMU).
+    FwVision,
     /// How many QEMU cars keep real time in the arena.
     Arena,
+    /// Soft core: CPI on the firmware, simulation speed, LUT4 from yosys.
+    Softcore,
 }
 
 impl Bench {
-    const ALL: [Bench; 6] = [
+    const ALL: [Bench; 8] = [
         Bench::Size,
         Bench::FwDecode,
         Bench::HostDecode,
         Bench::Radio,
         Bench::Camera,
+        Bench::FwVision,
         Bench::Arena,
+        Bench::Softcore,
     ];
 
     fn title(self) -> &'static str {
@@ -84,7 +95,9 @@ impl Bench {
             Bench::HostDecode => "lbc-link host decode throughput",
             Bench::Radio => "radio",
             Bench::Camera => "synthetic camera",
+            Bench::FwVision => "vision on the firmware (instructions per pixel)",
             Bench::Arena => "QEMU cars in real time",
+            Bench::Softcore => "soft core",
         }
     }
 }
@@ -105,7 +118,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
             Bench::HostDecode => cargo_bench("lbc-link", "decode", "lbc-link host decode"),
             Bench::Radio => cargo_bench("arena", "radio", "Radio"),
             Bench::Camera => cargo_bench("arena", "camera", "Synthetic camera"),
+            Bench::FwVision => fw_vision(),
             Bench::Arena => arena(),
+            Bench::Softcore => softcore(),
         };
         match section {
             Ok(text) => {
@@ -421,6 +436,129 @@ fn cargo_bench(package: &str, bench: &str, title: &str) -> Result<String> {
     Ok(md)
 }
 
+/// Goal for the on-target vision pipeline.
+const INSTRUCTIONS_PER_PIXEL_GOAL: f64 = 4.0;
+/// The on-target vision benchmark program (a binary of `ubc-app`).
+const FW_VISION_BIN: &str = "bench_vision";
+/// The stage whose figure is held against the goal.
+const VISION_HEADLINE_STAGE: &str = "process_frame";
+
+/// What each stage of the vision benchmark measures.
+fn vision_stage_meaning(stage: &str) -> &'static str {
+    match stage {
+        "runs" => "row scan only: classification into runs (count = runs)",
+        "process_frame" => "`vision::process_frame`: classification, runs, components, blob list",
+        "process_frame_rows2" => "the same with `row_step = 2` (every other row)",
+        "observe" => "`CameraModel::observe`: bearing and range of one blob (soft float)",
+        other => stage_meaning(other),
+    }
+}
+
+/// Builds `bench_vision`, then runs the ignored arena test that renders the benchmark scene into
+/// a RAM file and boots the program on it in QEMU; turns its `bench stage=` lines into a table.
+fn fw_vision() -> Result<String> {
+    crate::install::ensure_qemu()?;
+    let elf = fw::build_bin("qemu_virt", FW_VISION_BIN, true)?;
+    let args = [
+        "test",
+        "-p",
+        "arena",
+        "--release",
+        "--test",
+        "camera_fw_bench",
+        "--",
+        "--ignored",
+        "--nocapture",
+    ];
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let out = Command::new(cargo)
+        .args(args)
+        .env("UBC_BENCH_VISION_ELF", &elf)
+        .current_dir(workspace_root())
+        .stdin(Stdio::null())
+        .stderr(Stdio::inherit())
+        .output()
+        .with_context(|| format!("running cargo {}", args.join(" ")))?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    for line in text.lines().filter(|l| l.starts_with("fw: ")) {
+        eprintln!("{line}");
+    }
+    if !out.status.success() {
+        bail!("cargo {} failed ({})", args.join(" "), out.status);
+    }
+    // The test prints the firmware's log lines, each prefixed with `fw: `.
+    let figures: Vec<StageFigure> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("fw: ").and_then(StageFigure::parse))
+        .collect();
+    let text_size = fw::sizes(&elf)?.text;
+    fw_vision_table(&figures, text_size)
+}
+
+fn fw_vision_table(figures: &[StageFigure], text_size: u64) -> Result<String> {
+    let find = |name: &str| figures.iter().find(|f| f.stage == name);
+    let (Some(short), Some(long)) = (find("loop1000"), find("loop2000")) else {
+        bail!("the benchmark log has no calibration lines");
+    };
+    if long.instructions.checked_sub(short.instructions) != Some(2000) {
+        bail!(
+            "minstret is not an exact instruction count: loops of 1000 and 2000 iterations \
+             gave {} and {}",
+            short.instructions,
+            long.instructions
+        );
+    }
+    let Some(headline) = find(VISION_HEADLINE_STAGE) else {
+        bail!("the benchmark log has no `{VISION_HEADLINE_STAGE}` line");
+    };
+    let per_pixel = headline.per_byte().unwrap_or(f64::INFINITY);
+    let mut md = String::from(
+        "## Vision on the firmware: instructions per pixel
+
+",
+    );
+    let _ = writeln!(
+        md,
+        "A rendered 640x480 RGB332 view with four cars in sight (`arena::camera_feed::bench_scene`), \
+         published by the host into the frame-grabber window (QEMU RAM shared file) and read in \
+         place by `bench_vision` through the board's frame grabber; `minstret` on RV32IMA under \
+         `qemu-system-riscv32 -icount shift=0`, release build (opt-level \"s\"). The firmware's \
+         blobs equal the host pipeline's exactly (checked by the run).\n"
+    );
+    let _ = writeln!(
+        md,
+        "| stage | what | instructions | pixels | count | instructions/pixel |"
+    );
+    let _ = writeln!(md, "|---|---|---:|---:|---:|---:|");
+    for f in figures {
+        let per = f
+            .per_byte()
+            .map_or_else(|| "-".to_owned(), |v| format!("{v:.2}"));
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} |",
+            f.stage,
+            vision_stage_meaning(&f.stage),
+            f.instructions,
+            f.bytes,
+            f.frames,
+            per
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n**{per_pixel:.2} instructions per pixel** for `{VISION_HEADLINE_STAGE}` (goal <= {:.0}: {}).\n",
+        INSTRUCTIONS_PER_PIXEL_GOAL,
+        verdict(per_pixel <= INSTRUCTIONS_PER_PIXEL_GOAL)
+    );
+    let _ = writeln!(
+        md,
+        "`bench_vision` image: text {text_size} bytes ({}).\n\nReproduce: `cargo xtask bench --only fw-vision`.",
+        kib(text_size)
+    );
+    Ok(md)
+}
+
 /// Car counts the arena benchmark tries.
 const ARENA_CARS: &str = "1,2,4,8,12,16";
 
@@ -466,6 +604,190 @@ fn arena() -> Result<String> {
         md,
         "\nReproduce: `ARENA_BENCH_N={ARENA_CARS} cargo {}` (or `cargo xtask bench --only arena`).",
         args.join(" ")
+    );
+    Ok(md)
+}
+
+/// Firmware cycles the soft-core benchmark co-simulates (about 4 s of SoC time).
+const SOFTCORE_CYCLES: &str = "60000000";
+/// Goals of the soft core (issue: CPI, simulation speed, area).
+const SOFTCORE_CPI_GOAL: f64 = 1.6;
+const SOFTCORE_SPEED_GOAL: f64 = 2.0e6;
+const SOFTCORE_LUT_GOAL: u64 = 2000;
+
+/// `key=value` fields of the last line starting with `figures:` whose `mode` is `mode`.
+fn figures(text: &str, mode: &str) -> Option<BTreeMap<String, String>> {
+    text.lines()
+        .filter_map(|l| l.trim().strip_prefix("figures:"))
+        .map(|rest| {
+            rest.split_whitespace()
+                .filter_map(|kv| kv.split_once('='))
+                .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                .collect::<BTreeMap<_, _>>()
+        })
+        .rfind(|f| f.get("mode").is_some_and(|m| m == mode))
+}
+
+fn field(f: &BTreeMap<String, String>, key: &str) -> Result<f64> {
+    f.get(key)
+        .and_then(|v| v.parse().ok())
+        .with_context(|| format!("no numeric `{key}` in the figures"))
+}
+
+/// Runs `cmd` and returns its stdout; a failure status is an error unless `any_status` (a
+/// firmware that runs until the cycle limit ends `vtb-run` with status 3).
+fn run_captured(cmd: &mut Command, what: &str, any_status: bool) -> Result<String> {
+    let out = cmd
+        .current_dir(workspace_root())
+        .stdin(Stdio::null())
+        .stderr(Stdio::inherit())
+        .output()
+        .with_context(|| format!("running {what}"))?;
+    if !out.status.success() && !any_status {
+        bail!("{what} failed ({})", out.status);
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// Cell counts of `yosys ... synth_ice40 -dsp; stat` on the core (`rtl/synth_top.v`).
+fn softcore_area() -> Result<BTreeMap<String, u64>> {
+    let script =
+        "read_verilog rtl/rv_core.v rtl/synth_top.v; synth_ice40 -dsp -top synth_top; stat";
+    let out = Command::new("yosys")
+        .args(["-p", script])
+        .current_dir(workspace_root().join("verilator-tb"))
+        .stdin(Stdio::null())
+        .stderr(Stdio::inherit())
+        .output()
+        .context("running yosys (Debian package `yosys`)")?;
+    if !out.status.success() {
+        bail!("yosys failed ({})", out.status);
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    // the last `stat` block is the flattened top
+    let mut cells = BTreeMap::new();
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        if let (Some(name), Some(count), None) = (words.next(), words.next(), words.next()) {
+            if name.starts_with("SB_") {
+                if let Ok(n) = count.parse() {
+                    cells.insert(name.to_owned(), n);
+                }
+            }
+        }
+    }
+    if !cells.contains_key("SB_LUT4") {
+        bail!("yosys printed no SB_LUT4 count");
+    }
+    Ok(cells)
+}
+
+/// The soft core: the `softcore` firmware co-simulated with `lbc-emu` (CPI while awake,
+/// cycles/s), a busy loop free-running and in lockstep (cycles/s), and the core's area.
+fn softcore() -> Result<String> {
+    let elf = crate::fw::build("softcore", true)?;
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let run_args = [
+        "run",
+        "-q",
+        "-p",
+        "verilator-tb",
+        "--release",
+        "--bin",
+        "vtb-run",
+        "--",
+    ];
+    let text = run_captured(
+        Command::new(&cargo).args(run_args).arg(&elf).args([
+            "--lbc-emu",
+            "3",
+            "--max-cycles",
+            SOFTCORE_CYCLES,
+        ]),
+        "vtb-run (firmware co-simulation)",
+        true,
+    )?;
+    let fw = figures(&text, "cosim").context("vtb-run printed no figures")?;
+    let (cycles, insns, awake, wall) = (
+        field(&fw, "cycles")?,
+        field(&fw, "instructions")?,
+        field(&fw, "awake")?,
+        field(&fw, "wall_s")?,
+    );
+    let cpi = awake / insns.max(1.0);
+    let fw_speed = cycles / wall.max(1e-9);
+
+    let busy_args = [
+        "test",
+        "-p",
+        "verilator-tb",
+        "--release",
+        "--test",
+        "soc",
+        "--",
+        "--ignored",
+        "--nocapture",
+        "busy_speed",
+    ];
+    let text = run_captured(
+        Command::new(&cargo).args(busy_args),
+        "the busy_speed test of verilator-tb",
+        false,
+    )?;
+    let busy = figures(&text, "busy").context("busy_speed printed no figures")?;
+    let busy_speed = field(&busy, "cycles")? / field(&busy, "wall_s")?.max(1e-9);
+    let ls = figures(&text, "busy-lockstep").context("busy_speed printed no lockstep figures")?;
+    let ls_speed = field(&ls, "cycles")? / field(&ls, "wall_s")?.max(1e-9);
+
+    let area = softcore_area()?;
+    let cell = |name: &str| area.get(name).copied().unwrap_or(0);
+    let luts = cell("SB_LUT4");
+    let ffs: u64 = area
+        .iter()
+        .filter(|(k, _)| k.starts_with("SB_DFF"))
+        .map(|(_, v)| v)
+        .sum();
+
+    let mut md = String::from(
+        "## Soft core (verilator-tb)\n\n| figure | value | goal | verdict |\n|---|---|---|---|\n",
+    );
+    let _ = writeln!(
+        md,
+        "| CPI while awake, firmware + lbc-emu ({SOFTCORE_CYCLES} cycles) | {cpi:.3} ({insns:.0} instructions in {awake:.0} awake cycles) | <= {SOFTCORE_CPI_GOAL} | {} |",
+        verdict(cpi <= SOFTCORE_CPI_GOAL)
+    );
+    let _ = writeln!(
+        md,
+        "| simulation speed, firmware + lbc-emu co-simulation | {:.2} M cycles/s | >= {:.0} M | {} |",
+        fw_speed / 1e6,
+        SOFTCORE_SPEED_GOAL / 1e6,
+        verdict(fw_speed >= SOFTCORE_SPEED_GOAL)
+    );
+    let _ = writeln!(
+        md,
+        "| simulation speed, busy core, free-running | {:.2} M cycles/s | >= {:.0} M | {} |",
+        busy_speed / 1e6,
+        SOFTCORE_SPEED_GOAL / 1e6,
+        verdict(busy_speed >= SOFTCORE_SPEED_GOAL)
+    );
+    let _ = writeln!(
+        md,
+        "| simulation speed, busy core, lockstep with the golden model | {:.2} M cycles/s | | |",
+        ls_speed / 1e6
+    );
+    let _ = writeln!(
+        md,
+        "| area, core (`synth_ice40 -dsp`) | {luts} SB_LUT4, {} SB_CARRY, {ffs} flip-flops, {} SB_RAM40_4K, {} SB_MAC16 | <= {SOFTCORE_LUT_GOAL} LUT4 | {} |",
+        cell("SB_CARRY"),
+        cell("SB_RAM40_4K"),
+        cell("SB_MAC16"),
+        verdict(luts <= SOFTCORE_LUT_GOAL)
+    );
+    let _ = write!(
+        md,
+        "\nReproduce: `cargo xtask bench --only softcore` (firmware: `cargo {} ELF --lbc-emu 3 --max-cycles {SOFTCORE_CYCLES}`; busy core: `cargo {}`; area: `cd verilator-tb && yosys -p \"read_verilog rtl/rv_core.v rtl/synth_top.v; synth_ice40 -dsp -top synth_top; stat\"`). Speeds depend on the machine's load.",
+        run_args.join(" "),
+        busy_args.join(" ")
     );
     Ok(md)
 }
@@ -538,6 +860,27 @@ mod tests {
         ];
         let err = fw_decode_table(&inexact).unwrap_err().to_string();
         assert!(err.contains("not an exact instruction count"), "{err}");
+    }
+
+    #[test]
+    fn vision_table_reports_instructions_per_pixel() {
+        let figs = [
+            fig("loop1000", 2001, 0, 0),
+            fig("loop2000", 4001, 0, 0),
+            fig("process_frame", 792_320, 307_200, 4),
+            fig("observe", 16_248, 0, 1),
+        ];
+        let md = fw_vision_table(&figs, 40_000).unwrap();
+        assert!(md.contains("**2.58 instructions per pixel**"), "{md}");
+        assert!(md.contains("goal <= 4: met"), "{md}");
+        assert!(md.contains("| observe |"), "{md}");
+        let slow = [
+            fig("loop1000", 2001, 0, 0),
+            fig("loop2000", 4001, 0, 0),
+            fig("process_frame", 1_600_000, 307_200, 4),
+        ];
+        assert!(fw_vision_table(&slow, 1).unwrap().contains("**missed**"));
+        assert!(fw_vision_table(&slow[2..], 1).is_err());
     }
 
     #[test]

@@ -1,0 +1,627 @@
+//! Camera frames into running cars: each car's QEMU RAM is a shared file (`qemu-harness`), and
+//! its frame-grabber window sits at [`FRAME_WINDOW_OFFSET`] in it. [`RamWindow`] is the writer
+//! side of the window protocol over such a file; [`CameraFeed`] renders every car's view at a
+//! fixed rate on its own thread and publishes it; [`read_window_frame`] is a host reader (for
+//! `almc camera snapshot`).
+//!
+//! Protocol order over the file: the buffer's `buffer_seq` is set to `WRITING` (one `pwrite`),
+//! the pixels are written, then `capture_us` with `buffer_seq`, then `ready`, then `sequence`,
+//! each a separate `pwrite` in that order (`docs/camera.md`).
+
+/// The vision crate whose types this module's API uses.
+pub use vision;
+
+use crate::camera::{CameraConfig, CameraError, CarPose, SyntheticCamera};
+use qemu_harness::{SharedRam, FRAME_WINDOW_OFFSET};
+use std::io;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+use vision::blobs::{BlobDetector, Detections};
+use vision::colour::MARKER_CLASSES;
+use vision::frame::{FrameTicket, HeaderError, HeaderRepr, HEADER_LEN, WINDOW_LEN, WRITING};
+use vision::{process_frame, FrameGeometry, PipelineConfig, PipelineError};
+
+/// File name of car `id`'s RAM file inside a world's run directory.
+pub fn ram_file_name(id: u8) -> String {
+    format!("car{id}-ram")
+}
+
+/// Default frame rate of the feed, frames per second per car.
+pub const DEFAULT_FPS: f64 = 15.0;
+
+// Byte offsets of the header fields the writer updates (layout in `vision::frame`).
+const SEQUENCE: u64 = 28;
+const READY: u64 = 32;
+const BUFFER_SEQ: [u64; 2] = [36, 40];
+const CAPTURE_US: [u64; 2] = [48, 56];
+
+/// Why a window could not be written or read.
+#[derive(Debug)]
+pub enum FeedError {
+    /// Reading or writing the RAM file failed.
+    Io(io::Error),
+    /// The window's header is not valid, or shows no usable frame.
+    Header(HeaderError),
+    /// The renderer failed.
+    Camera(CameraError),
+    /// The frame does not go through the pipeline.
+    Pipeline(PipelineError),
+    /// The frame has the wrong size for the window.
+    FrameSize { needed: usize, got: usize },
+}
+
+impl std::fmt::Display for FeedError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FeedError::Io(e) => write!(f, "{e}"),
+            FeedError::Header(HeaderError::NoFrame) => write!(f, "no frame published yet"),
+            FeedError::Header(e) => write!(f, "frame-grabber window: {e:?}"),
+            FeedError::Camera(e) => write!(f, "camera: {e:?}"),
+            FeedError::Pipeline(e) => write!(f, "vision: {e:?}"),
+            FeedError::FrameSize { needed, got } => {
+                write!(f, "frame of {got} bytes, the window needs {needed}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for FeedError {}
+
+impl From<io::Error> for FeedError {
+    fn from(e: io::Error) -> Self {
+        FeedError::Io(e)
+    }
+}
+
+impl From<HeaderError> for FeedError {
+    fn from(e: HeaderError) -> Self {
+        FeedError::Header(e)
+    }
+}
+
+/// The writer of one car's window in its RAM file.
+#[derive(Debug)]
+pub struct RamWindow {
+    ram: SharedRam,
+    header: HeaderRepr,
+}
+
+impl RamWindow {
+    /// Writes a fresh header (nothing published) for `geometry` into the RAM file.
+    pub fn init(ram: SharedRam, geometry: &FrameGeometry) -> Result<Self, FeedError> {
+        let header = HeaderRepr::new(geometry.width, geometry.height, geometry.format);
+        if header.window_len() > WINDOW_LEN {
+            return Err(FeedError::FrameSize {
+                needed: header.window_len(),
+                got: WINDOW_LEN,
+            });
+        }
+        let mut bytes = [0u8; HEADER_LEN];
+        header.emit(&mut bytes)?;
+        ram.write_at(FRAME_WINDOW_OFFSET, &bytes)?;
+        Ok(RamWindow { ram, header })
+    }
+
+    /// The header as last written.
+    pub fn header(&self) -> &HeaderRepr {
+        &self.header
+    }
+
+    fn put_u32(&self, field: u64, v: u32) -> io::Result<()> {
+        self.ram
+            .write_at(FRAME_WINDOW_OFFSET + field, &v.to_le_bytes())
+    }
+
+    /// Publishes `pixels` (one packed frame) as the next frame; returns its sequence.
+    pub fn publish(&mut self, pixels: &[u8], capture_us: u64) -> Result<u32, FeedError> {
+        let mut h = self.header;
+        let needed = h.frame_len();
+        if pixels.len() != needed {
+            return Err(FeedError::FrameSize {
+                needed,
+                got: pixels.len(),
+            });
+        }
+        let index = if h.sequence == 0 {
+            0
+        } else {
+            ((h.ready & 1) ^ 1) as usize
+        };
+        // The local copy and the file agree on WRITING even if a later write fails.
+        self.header.buffer_seq[index] = WRITING;
+        h.buffer_seq[index] = WRITING;
+        self.put_u32(BUFFER_SEQ[index], WRITING)?;
+        let start = FRAME_WINDOW_OFFSET + u64::from(h.buffer_offset[index]);
+        self.ram.write_at(start, pixels)?;
+        let mut next = h.sequence.wrapping_add(1);
+        if next == 0 || next == WRITING {
+            next = 1;
+        }
+        self.ram.write_at(
+            FRAME_WINDOW_OFFSET + CAPTURE_US[index],
+            &capture_us.to_le_bytes(),
+        )?;
+        self.put_u32(BUFFER_SEQ[index], next)?;
+        self.put_u32(READY, index as u32)?;
+        self.put_u32(SEQUENCE, next)?;
+        h.capture_us[index] = capture_us;
+        h.buffer_seq[index] = next;
+        h.ready = index as u32;
+        h.sequence = next;
+        self.header = h;
+        Ok(next)
+    }
+}
+
+/// A frame read from a RAM file's window, whole (the header did not change under it).
+#[derive(Debug, Clone)]
+pub struct WindowFrame {
+    pub ticket: FrameTicket,
+    pub geometry: FrameGeometry,
+    pub pixels: Vec<u8>,
+}
+
+impl WindowFrame {
+    /// Runs the vision pipeline with the marker classes (as the firmware does).
+    pub fn detect(&self) -> Result<Detections, FeedError> {
+        let mut det = BlobDetector::new();
+        process_frame(
+            &self.pixels,
+            &self.geometry,
+            &MARKER_CLASSES,
+            &PipelineConfig::default(),
+            &mut det,
+        )
+        .map_err(FeedError::Pipeline)
+    }
+}
+
+/// Reads the newest published frame from the RAM file at `path` (a few attempts if the writer
+/// is mid-publish or overwrites it meanwhile).
+pub fn read_window_frame(path: &Path) -> Result<WindowFrame, FeedError> {
+    let ram = SharedRam::open_read_only(path)?;
+    let mut last = FeedError::Header(HeaderError::NoFrame);
+    for _ in 0..5 {
+        let mut hb = [0u8; HEADER_LEN];
+        ram.read_at(FRAME_WINDOW_OFFSET, &mut hb)?;
+        let header = HeaderRepr::parse(&hb)?;
+        if header.window_len() > WINDOW_LEN {
+            return Err(FeedError::FrameSize {
+                needed: header.window_len(),
+                got: WINDOW_LEN,
+            });
+        }
+        let ticket = match header.ticket() {
+            Ok(t) => t,
+            Err(HeaderError::NoFrame) => return Err(HeaderError::NoFrame.into()),
+            Err(e) => {
+                last = e.into();
+                thread::sleep(Duration::from_millis(5));
+                continue;
+            }
+        };
+        let range = header.buffer_range(ticket.index);
+        let mut pixels = vec![0u8; range.len()];
+        ram.read_at(FRAME_WINDOW_OFFSET + range.start as u64, &mut pixels)?;
+        ram.read_at(FRAME_WINDOW_OFFSET, &mut hb)?;
+        match ticket.verify(&HeaderRepr::parse(&hb)?) {
+            Ok(()) => {
+                return Ok(WindowFrame {
+                    ticket,
+                    geometry: FrameGeometry::from(&header),
+                    pixels,
+                })
+            }
+            Err(e) => last = e.into(),
+        }
+    }
+    Err(last)
+}
+
+/// Prefix of a running world's directory in the system temp dir: `almc-arena-<pid>-<n>`.
+pub const RUN_DIR_PREFIX: &str = "almc-arena-";
+
+/// Why no running car's RAM file was found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FindError {
+    /// The given run directory does not exist.
+    NoRunDir { dir: PathBuf },
+    /// The run directory has no RAM file for the car (no such car, or no camera in that run).
+    NoCarInRun { car: u8, dir: PathBuf },
+    /// No running world in the temp dir has a RAM file for the car.
+    NoneRunning { car: u8, temp_dir: PathBuf },
+}
+
+impl std::fmt::Display for FindError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FindError::NoRunDir { dir } => {
+                write!(f, "run directory {} does not exist", dir.display())
+            }
+            FindError::NoCarInRun { car, dir } => write!(
+                f,
+                "{} has no {} (no car {car} in that run, or it runs without a camera)",
+                dir.display(),
+                ram_file_name(*car)
+            ),
+            FindError::NoneRunning { car, temp_dir } => write!(
+                f,
+                "no running arena has car {car} with a camera (looked for {}/{RUN_DIR_PREFIX}*/{})",
+                temp_dir.display(),
+                ram_file_name(*car)
+            ),
+        }
+    }
+}
+
+impl std::error::Error for FindError {}
+
+/// Whether the process that owns world directory `name` (`almc-arena-<pid>-<n>`) is alive.
+fn owner_alive(name: &str) -> bool {
+    let Some(pid) = name
+        .strip_prefix(RUN_DIR_PREFIX)
+        .and_then(|rest| rest.split('-').next())
+        .and_then(|pid| pid.parse::<u32>().ok())
+    else {
+        return false;
+    };
+    Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Car `car`'s RAM file: in `run` if given, else in the most recently started running world
+/// under the system temp dir.
+pub fn find_car_ram(car: u8, run: Option<&Path>) -> Result<PathBuf, FindError> {
+    if let Some(dir) = run {
+        if !dir.is_dir() {
+            return Err(FindError::NoRunDir { dir: dir.into() });
+        }
+        let path = dir.join(ram_file_name(car));
+        return if path.is_file() {
+            Ok(path)
+        } else {
+            Err(FindError::NoCarInRun {
+                car,
+                dir: dir.into(),
+            })
+        };
+    }
+    let temp_dir = std::env::temp_dir();
+    let none = || FindError::NoneRunning {
+        car,
+        temp_dir: temp_dir.clone(),
+    };
+    let entries = std::fs::read_dir(&temp_dir).map_err(|_| none())?;
+    let mut best: Option<(std::time::SystemTime, PathBuf)> = None;
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !name.starts_with(RUN_DIR_PREFIX) || !owner_alive(&name) {
+            continue;
+        }
+        let path = e.path().join(ram_file_name(car));
+        let Ok(meta) = std::fs::metadata(&path) else {
+            continue;
+        };
+        let t = meta.modified().unwrap_or(std::time::UNIX_EPOCH);
+        if best.as_ref().is_none_or(|(bt, _)| t > *bt) {
+            best = Some((t, path));
+        }
+    }
+    best.map(|(_, p)| p).ok_or_else(none)
+}
+
+/// Settings of a [`CameraFeed`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeedConfig {
+    /// Frames per second per car.
+    pub fps: f64,
+    /// The camera of every car.
+    pub camera: CameraConfig,
+    /// Seed of the cameras' noise (car `id` adds `id`).
+    pub seed: u64,
+}
+
+impl Default for FeedConfig {
+    fn default() -> Self {
+        FeedConfig {
+            fps: DEFAULT_FPS,
+            camera: CameraConfig::default(),
+            seed: 1,
+        }
+    }
+}
+
+/// Counters of a running feed.
+#[derive(Debug, Default)]
+struct FeedCounters {
+    frames: AtomicU64,
+    late: AtomicU64,
+    render_us: AtomicU64,
+}
+
+/// What a feed has done so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FeedStats {
+    /// Frames published (all cars).
+    pub frames: u64,
+    /// Rounds that started later than their slot (the host did not keep the rate).
+    pub late_rounds: u64,
+    /// Time spent rendering and writing, microseconds (all cars).
+    pub busy_us: u64,
+}
+
+/// A thread that renders every car's view at a fixed rate and publishes it into its window.
+/// Dropping it stops the thread.
+#[derive(Debug)]
+pub struct CameraFeed {
+    stop: Arc<AtomicBool>,
+    counters: Arc<FeedCounters>,
+    thread: Option<JoinHandle<()>>,
+}
+
+/// One car fed by a [`CameraFeed`]: its ID and its RAM file.
+#[derive(Debug)]
+pub struct FeedTarget {
+    pub id: u8,
+    pub path: PathBuf,
+    pub window: RamWindow,
+}
+
+impl FeedTarget {
+    /// Creates car `id`'s RAM file at `path` (before its QEMU starts) with an empty window.
+    pub fn create(
+        id: u8,
+        path: PathBuf,
+        ram_len: u64,
+        config: &FeedConfig,
+    ) -> Result<Self, FeedError> {
+        let ram = SharedRam::create(&path, ram_len)?;
+        let g = SyntheticCamera::new(config.camera, 0).geometry();
+        Ok(FeedTarget {
+            id,
+            path,
+            window: RamWindow::init(ram, &g)?,
+        })
+    }
+}
+
+impl CameraFeed {
+    /// Starts feeding `targets`; `poses()` gives every car's pose at the moment of the call.
+    pub fn start(
+        config: FeedConfig,
+        targets: Vec<FeedTarget>,
+        poses: impl Fn() -> Vec<CarPose> + Send + 'static,
+    ) -> io::Result<Self> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let counters = Arc::new(FeedCounters::default());
+        let (s, c) = (stop.clone(), counters.clone());
+        let thread = thread::Builder::new()
+            .name("arena-camera".into())
+            .spawn(move || run_feed(config, targets, poses, &s, &c))?;
+        Ok(CameraFeed {
+            stop,
+            counters,
+            thread: Some(thread),
+        })
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> FeedStats {
+        FeedStats {
+            frames: self.counters.frames.load(Ordering::Relaxed),
+            late_rounds: self.counters.late.load(Ordering::Relaxed),
+            busy_us: self.counters.render_us.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Stops the thread and waits for it.
+    pub fn stop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for CameraFeed {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+fn run_feed(
+    config: FeedConfig,
+    mut targets: Vec<FeedTarget>,
+    poses: impl Fn() -> Vec<CarPose>,
+    stop: &AtomicBool,
+    counters: &FeedCounters,
+) {
+    let mut cams: Vec<SyntheticCamera> = targets
+        .iter()
+        .map(|t| SyntheticCamera::new(config.camera, config.seed.wrapping_add(u64::from(t.id))))
+        .collect();
+    let Some(first) = cams.first() else {
+        return;
+    };
+    let mut frame = vec![0u8; first.geometry().frame_len()];
+    let period = Duration::from_secs_f64(1.0 / config.fps.clamp(0.1, 1000.0));
+    let started = Instant::now();
+    let mut next = started;
+    while !stop.load(Ordering::Relaxed) {
+        let now = Instant::now();
+        if now < next {
+            thread::sleep((next - now).min(Duration::from_millis(20)));
+            continue;
+        }
+        if now > next + period {
+            counters.late.fetch_add(1, Ordering::Relaxed);
+            next = now;
+        }
+        next += period;
+        let all = poses();
+        let t0 = Instant::now();
+        for (t, cam) in targets.iter_mut().zip(cams.iter_mut()) {
+            let Some(viewer) = all.iter().find(|p| p.id == t.id) else {
+                continue;
+            };
+            let capture_us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
+            if cam.render(viewer, &all, &mut frame).is_ok()
+                && t.window.publish(&frame, capture_us).is_ok()
+            {
+                counters.frames.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        let busy = u64::try_from(t0.elapsed().as_micros()).unwrap_or(u64::MAX);
+        counters.render_us.fetch_add(busy, Ordering::Relaxed);
+    }
+}
+
+/// The scene of the benchmarks: a car at the near end looking down the arena at four others.
+pub fn bench_scene() -> (CarPose, Vec<CarPose>) {
+    let viewer = CarPose {
+        id: 0,
+        x_mm: 750.0,
+        y_mm: 300.0,
+        yaw_rad: std::f32::consts::FRAC_PI_2,
+    };
+    let mut cars = vec![viewer];
+    for (id, x, y, yaw) in [
+        (1, 700.0, 800.0, 0.3),
+        (2, 950.0, 1100.0, 1.0),
+        (3, 500.0, 1300.0, 2.0),
+        (4, 800.0, 1700.0, 4.0),
+    ] {
+        cars.push(CarPose {
+            id,
+            x_mm: x,
+            y_mm: y,
+            yaw_rad: yaw,
+        });
+    }
+    (viewer, cars)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vision::frame::FrameWindow;
+
+    #[test]
+    fn published_frames_read_back_whole_and_match_the_slice_writer() {
+        let dir = tempfile_dir();
+        let path = dir.join("ram");
+        let ram = SharedRam::create(&path, FRAME_WINDOW_OFFSET + WINDOW_LEN as u64).unwrap();
+        let mut cam = SyntheticCamera::new(CameraConfig::default(), 3);
+        let g = cam.geometry();
+        let mut win = RamWindow::init(ram, &g).unwrap();
+        assert!(matches!(
+            read_window_frame(&path),
+            Err(FeedError::Header(HeaderError::NoFrame))
+        ));
+        let (viewer, cars) = bench_scene();
+        let mut frame = vec![0u8; g.frame_len()];
+        // The same frames through the in-memory writer of `vision::frame`.
+        let mut mem = vec![0u8; WINDOW_LEN];
+        let mut reference = FrameWindow::init(&mut mem[..], g.width, g.height, g.format).unwrap();
+        for k in 0..3u64 {
+            cam.render(&viewer, &cars, &mut frame).unwrap();
+            assert_eq!(win.publish(&frame, 100 * k).unwrap(), k as u32 + 1);
+            let i = reference.begin_write();
+            reference.buffer_mut(i).copy_from_slice(&frame);
+            reference.publish(i, 100 * k);
+        }
+        let mut file = vec![0u8; WINDOW_LEN];
+        SharedRam::open_read_only(&path)
+            .unwrap()
+            .read_at(FRAME_WINDOW_OFFSET, &mut file)
+            .unwrap();
+        assert_eq!(file, mem);
+        let back = read_window_frame(&path).unwrap();
+        assert_eq!((back.ticket.sequence, back.ticket.capture_us), (3, 200));
+        assert_eq!(back.pixels, frame);
+        let d = back.detect().unwrap();
+        assert!(d.blobs().len() >= 3, "{d:?}");
+        assert!(matches!(
+            win.publish(&frame[1..], 0),
+            Err(FeedError::FrameSize { .. })
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn finds_ram_files_of_live_runs_only() {
+        let base = tempfile_dir();
+        assert!(matches!(
+            find_car_ram(3, Some(&base.join("nope"))),
+            Err(FindError::NoRunDir { .. })
+        ));
+        assert!(matches!(
+            find_car_ram(3, Some(&base)),
+            Err(FindError::NoCarInRun { car: 3, .. })
+        ));
+        std::fs::write(base.join(ram_file_name(3)), b"x").unwrap();
+        assert_eq!(find_car_ram(3, Some(&base)).unwrap(), base.join("car3-ram"));
+        // A world directory of this (live) process, and one of a process that cannot exist.
+        let tmp = std::env::temp_dir();
+        let live = tmp.join(format!("{RUN_DIR_PREFIX}{}-9999", std::process::id()));
+        let dead = tmp.join(format!("{RUN_DIR_PREFIX}4294967295-0"));
+        for d in [&live, &dead] {
+            std::fs::create_dir_all(d).unwrap();
+            std::fs::write(d.join(ram_file_name(125)), b"x").unwrap();
+        }
+        assert_eq!(find_car_ram(125, None).unwrap(), live.join("car125-ram"));
+        std::fs::remove_dir_all(&live).unwrap();
+        let err = find_car_ram(125, None).unwrap_err();
+        assert!(
+            matches!(err, FindError::NoneRunning { car: 125, .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("almc-arena-*/car125-ram"), "{err}");
+        let _ = std::fs::remove_dir_all(&dead);
+        let _ = std::fs::remove_dir_all(&base);
+    }
+
+    fn tempfile_dir() -> PathBuf {
+        let d = std::env::temp_dir().join(format!(
+            "arena-camera-feed-{}-{}",
+            std::process::id(),
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+
+    #[test]
+    fn feed_publishes_at_its_rate_and_stops() {
+        let dir = tempfile_dir();
+        let config = FeedConfig {
+            fps: 5.0,
+            ..FeedConfig::default()
+        };
+        let len = FRAME_WINDOW_OFFSET + WINDOW_LEN as u64;
+        let targets = vec![
+            FeedTarget::create(0, dir.join("a"), len, &config).unwrap(),
+            FeedTarget::create(1, dir.join("b"), len, &config).unwrap(),
+        ];
+        let (_, cars) = bench_scene();
+        let mut feed = CameraFeed::start(config, targets, move || cars.clone()).unwrap();
+        thread::sleep(Duration::from_millis(700));
+        feed.stop();
+        // Four rounds at most in 0.7 s at 5 fps; a debug build renders slowly, so at least one.
+        let s = feed.stats();
+        assert!((2..=8).contains(&s.frames), "{s:?}");
+        let frames = s.frames;
+        thread::sleep(Duration::from_millis(300));
+        assert_eq!(feed.stats().frames, frames);
+        let a = read_window_frame(&dir.join("a")).unwrap();
+        let b = read_window_frame(&dir.join("b")).unwrap();
+        assert!(a.ticket.sequence >= 1 && b.ticket.sequence >= 1);
+        // Car 0 looks down the arena at the others.
+        assert!(!a.detect().unwrap().blobs().is_empty());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
