@@ -463,7 +463,8 @@ pub fn to_rgb8(frame: &[u8], geometry: &FrameGeometry) -> Result<Vec<u8>, Camera
     Ok(rgb)
 }
 
-/// Draws each detection's bounding box (white) and centroid cross (black) on an RGB8 image.
+/// Draws each detection's bounding box (white, ringed in black) and centroid cross (black) on an
+/// RGB8 image.
 pub fn draw_detections(rgb: &mut [u8], width: usize, height: usize, detections: &Detections) {
     let mut put = |x: usize, y: usize, c: [u8; 3]| {
         if x < width && y < height {
@@ -480,13 +481,25 @@ pub fn draw_detections(rgb: &mut [u8], width: usize, height: usize, detections: 
             usize::from(b.max_x) + 1,
             usize::from(b.max_y) + 1,
         );
-        for x in x0..=x1 {
-            put(x, y0, [255; 3]);
-            put(x, y1, [255; 3]);
-        }
-        for y in y0..=y1 {
-            put(x0, y, [255; 3]);
-            put(x1, y, [255; 3]);
+        // A white box with a black one around it shows on bright and dark backgrounds alike.
+        for (x0, y0, x1, y1, c) in [
+            (
+                x0.saturating_sub(1),
+                y0.saturating_sub(1),
+                x1 + 1,
+                y1 + 1,
+                [0; 3],
+            ),
+            (x0, y0, x1, y1, [255; 3]),
+        ] {
+            for x in x0..=x1 {
+                put(x, y0, c);
+                put(x, y1, c);
+            }
+            for y in y0..=y1 {
+                put(x0, y, c);
+                put(x1, y, c);
+            }
         }
         let (cx, cy) = b.centroid();
         let (cx, cy) = (cx.round() as usize, cy.round() as usize);

@@ -23,7 +23,7 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Cmd {
-    /// Run the main demonstration: the firmware in QEMU against the emulated lower board.
+    /// Run the main demonstration: four cars in QEMU form a wedge, break up and rendezvous.
     Demo,
     /// Run every test: lint, host tests, firmware build, QEMU end-to-end tests, fuzz smoke runs.
     Test(test::TestArgs),
