@@ -749,7 +749,10 @@ impl Program {
         }
         self.stop_group(now, log);
         if let Some(m) = self.mac.as_mut() {
+            // Heartbeats take over from the state broadcast: they must not advertise the
+            // maneuver that just stopped.
             m.clear_state();
+            m.set_mode(Mode::default());
         }
         self.vehicle.have_pose = false;
         if !self.had_failure {
