@@ -111,7 +111,8 @@ pub fn run(args: TestArgs) -> Result<()> {
     record("host and QEMU tests", &mut || {
         let mut cmd = Command::new(cargo_bin());
         // The whole workspace, including the soft core's test bench (not a default member).
-        cmd.args(["test", "--workspace"]);
+        // Every test binary runs even when one fails, so the summary counts them all.
+        cmd.args(["test", "--workspace", "--no-fail-fast"]);
         match (&elfs, args.no_qemu) {
             (Some((program, echo, softcore)), _) => {
                 cmd.env("UBC_FW_ELF", program)
