@@ -5,6 +5,7 @@
 //! CSVs, an event log, a JSON summary and an SVG plot) to a directory. The format and the
 //! metrics are described in `docs/experiments.md`.
 
+use crate::camera_feed::FeedConfig;
 use crate::radio_medium::MediumParams;
 use crate::world::{CarSpec, TrackingParams, WorldConfig, WorldError, MM_PER_UNIT};
 use lbc_emu::{FaultConfig, Pose};
@@ -55,6 +56,9 @@ pub struct Experiment {
     pub phases: Vec<Phase>,
     /// Imperfections of the world.
     pub faults: Faults,
+    /// Frames per second of every car's synthetic camera (written into its frame grabber);
+    /// `None`: no camera feed.
+    pub camera_fps: Option<f64>,
 }
 
 /// A car and its start pose (tracking units, 2.5 mm; heading mrad counter-clockwise from +X).
@@ -311,6 +315,7 @@ struct RawExperiment {
     phases: Vec<RawPhase>,
     #[serde(default)]
     faults: Faults,
+    camera_fps: Option<f64>,
 }
 
 fn one() -> u64 {
@@ -433,6 +438,11 @@ pub enum Invalid {
     },
     /// `duration_s` or `bringup_s` not positive and finite.
     Duration,
+    /// `camera_fps` outside (0, 60].
+    CameraFps {
+        /// The value given.
+        value: f64,
+    },
     /// Neither `[maneuver]` nor `[[phases]]`, or both.
     Maneuvers,
     /// A phase without `kind`.
@@ -529,6 +539,9 @@ impl fmt::Display for Invalid {
                 "car {id}: start pose outside X 0..=640, Y 0..=960, heading 0..=6283"
             ),
             Self::Duration => write!(f, "`duration_s` and `bringup_s` must be positive"),
+            Self::CameraFps { value } => {
+                write!(f, "`camera_fps` = {value} is outside 0 (exclusive) ..= 60")
+            }
             Self::Maneuvers => write!(f, "give either one [maneuver] or a list of [[phases]]"),
             Self::MissingKind { phase } => write!(f, "phase {phase}: `kind` is missing"),
             Self::Missing { phase, kind, field } => {
@@ -898,6 +911,11 @@ impl Experiment {
         if !positive(raw.duration_s) || !positive(raw.bringup_s) {
             return Err(Invalid::Duration);
         }
+        if let Some(value) = raw.camera_fps {
+            if !positive(value) || value > 60.0 {
+                return Err(Invalid::CameraFps { value });
+            }
+        }
         let raws: Vec<RawPhase> = match (raw.maneuver, raw.phases.is_empty()) {
             (Some(m), true) => vec![m],
             (None, false) => raw.phases,
@@ -936,6 +954,7 @@ impl Experiment {
             cars: raw.cars,
             phases,
             faults: raw.faults,
+            camera_fps: raw.camera_fps,
         };
         e.check_faults()?;
         Ok(e)
@@ -1011,6 +1030,11 @@ impl Experiment {
             drop: self.faults.tracking_drop,
         };
         cfg.lbc_faults = self.faults.lbc.into();
+        cfg.camera = self.camera_fps.map(|fps| FeedConfig {
+            fps,
+            seed: self.seed,
+            ..FeedConfig::default()
+        });
         cfg
     }
 }
@@ -1117,6 +1141,23 @@ start_s = 90
         assert_eq!(w.radio.loss_probability, 0.2);
         assert_eq!(w.lbc_faults.drop, 0.001);
         assert_eq!(w.tracking.rate_hz, 30.0);
+        assert!(w.camera.is_none());
+    }
+
+    #[test]
+    fn camera_feed_from_the_file() {
+        let e =
+            Experiment::parse(&TWO.replace("duration_s = 30", "duration_s = 30\ncamera_fps = 10"))
+                .unwrap();
+        let feed = e.world_config(Path::new("/fw")).camera.unwrap();
+        assert_eq!(feed.fps, 10.0);
+        for v in ["0", "-5", "61", "nan"] {
+            let text = TWO.replace(
+                "duration_s = 30",
+                &format!("duration_s = 30\ncamera_fps = {v}"),
+            );
+            assert!(matches!(invalid(&text), Invalid::CameraFps { .. }), "{v}");
+        }
     }
 
     #[test]
