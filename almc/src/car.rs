@@ -70,6 +70,13 @@ pub enum CarCommand {
     /// Group maneuver (formation, rendezvous, circle, go-to, camera follow).
     #[command(subcommand)]
     Group(GroupCommand),
+    /// The car's latest camera detections: frame, blob count, the followed marker's bearing and
+    /// range, and one blob (0 = the largest).
+    Camera {
+        /// Which blob to report, largest first.
+        #[arg(long, default_value_t = 0)]
+        blob: u8,
+    },
     /// Link and program counters (all pages, or one).
     Stats {
         /// Page 0..=3 (0 LBC requests, 1 LBC line, 2 radio, 3 program).
@@ -340,6 +347,7 @@ fn build_requests(cmd: &CarCommand) -> Result<Vec<Request>, CarError> {
             vec![Request::GroupWaypoint { x: p.x, y: p.y }]
         }
         CarCommand::Group(GroupCommand::Stop) => vec![Request::ManeuverStop],
+        CarCommand::Camera { blob } => vec![Request::Camera { blob: *blob }],
         CarCommand::Stats { page: Some(p) } => vec![Request::Stats(*p)],
         CarCommand::Stats { page: None } => (0..4).map(Request::Stats).collect(),
     })
@@ -513,10 +521,34 @@ pub fn reply_json(r: &Reply) -> (bool, Value) {
                 .unwrap_or("unknown");
             (true, json!({ "page": page_name, "counters": m }))
         }
-        // Replies of requests `almc car` does not send (they have their own commands).
+        Reply::Camera(c) => (true, camera_json(c)),
+        // Replies a newer firmware may add.
         #[allow(unreachable_patterns)]
         other => (true, json!({ "reply": format!("{other:?}") })),
     }
+}
+
+/// A camera report as JSON: centroids in pixels, the leader only while one is followed.
+fn camera_json(c: &ubc_app::program::console::CameraReport) -> Value {
+    let mut v = json!({ "frame": c.sequence, "blobs": c.blobs });
+    if c.leader_class != 0 {
+        v["leader"] = json!({
+            "class": c.leader_class,
+            "follow_state": c.follow_state,
+            "bearing_mrad": c.leader_bearing_mrad,
+            "range_mm": (c.leader_range_mm != 0).then_some(c.leader_range_mm),
+        });
+    }
+    if let Some((i, b)) = c.blob {
+        v["blob"] = json!({
+            "index": i,
+            "class": b.class,
+            "area": b.area,
+            "centroid": [f64::from(b.cx_q2) / 4.0, f64::from(b.cy_q2) / 4.0],
+            "box": [b.min_x, b.min_y, b.max_x, b.max_y],
+        });
+    }
+    v
 }
 
 fn text_of(v: &Value) -> String {
@@ -654,6 +686,45 @@ mod tests {
                 .len(),
             4
         );
+    }
+
+    #[test]
+    fn camera_request_and_reply() {
+        use ubc_app::program::console::{BlobReport, CameraReport};
+        assert_eq!(
+            build_requests(&CarCommand::Camera { blob: 2 }).unwrap(),
+            vec![Request::Camera { blob: 2 }]
+        );
+        let report = CameraReport {
+            sequence: 42,
+            blobs: 3,
+            leader_class: 4,
+            follow_state: 1,
+            leader_bearing_mrad: -12,
+            leader_range_mm: 0,
+            blob: Some((
+                0,
+                BlobReport {
+                    class: 4,
+                    area: 729,
+                    cx_q2: 1081,
+                    cy_q2: 848,
+                    min_x: 257,
+                    min_y: 199,
+                    max_x: 283,
+                    max_y: 225,
+                },
+            )),
+        };
+        let (ok, v) = reply_json(&Reply::Camera(report));
+        assert!(ok);
+        assert_eq!(v["frame"], 42);
+        assert_eq!(v["leader"]["bearing_mrad"], -12);
+        assert!(v["leader"]["range_mm"].is_null());
+        assert_eq!(v["blob"]["centroid"][0], 270.25);
+        assert_eq!(v["blob"]["box"][3], 225);
+        let (_, v) = reply_json(&Reply::Camera(CameraReport::default()));
+        assert!(v.get("leader").is_none() && v.get("blob").is_none());
     }
 
     #[test]
