@@ -459,32 +459,13 @@ fn vision_stage_meaning(stage: &str) -> &'static str {
 fn fw_vision() -> Result<String> {
     crate::install::ensure_qemu()?;
     let elf = fw::build_bin("qemu_virt", FW_VISION_BIN, true)?;
-    let args = [
-        "test",
-        "-p",
+    let text = ignored_test(
         "arena",
-        "--release",
-        "--test",
         "camera_fw_bench",
-        "--",
-        "--ignored",
-        "--nocapture",
-    ];
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
-    let out = Command::new(cargo)
-        .args(args)
-        .env("UBC_BENCH_VISION_ELF", &elf)
-        .current_dir(workspace_root())
-        .stdin(Stdio::null())
-        .stderr(Stdio::inherit())
-        .output()
-        .with_context(|| format!("running cargo {}", args.join(" ")))?;
-    let text = String::from_utf8_lossy(&out.stdout);
+        &[("UBC_BENCH_VISION_ELF", elf.as_os_str())],
+    )?;
     for line in text.lines().filter(|l| l.starts_with("fw: ")) {
         eprintln!("{line}");
-    }
-    if !out.status.success() {
-        bail!("cargo {} failed ({})", args.join(" "), out.status);
     }
     // The test prints the firmware's log lines, each prefixed with `fw: `.
     let figures: Vec<StageFigure> = text
@@ -566,31 +547,14 @@ const ARENA_CARS: &str = "1,2,4,8,12,16";
 /// stream, tracking and console; the benchmark is an ignored test of `arena`.
 fn arena() -> Result<String> {
     let elf = crate::fw::build("qemu_virt", true)?;
-    let args = [
-        "test",
-        "-p",
+    let text = ignored_test(
         "arena",
-        "--release",
-        "--test",
         "arena_bench",
-        "--",
-        "--ignored",
-        "--nocapture",
-    ];
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
-    let out = Command::new(cargo)
-        .args(args)
-        .env("ARENA_BENCH_N", ARENA_CARS)
-        .env("UBC_FW_ELF", &elf)
-        .current_dir(workspace_root())
-        .stdin(Stdio::null())
-        .stderr(Stdio::inherit())
-        .output()
-        .with_context(|| format!("running cargo {}", args.join(" ")))?;
-    if !out.status.success() {
-        bail!("cargo {} failed ({})", args.join(" "), out.status);
-    }
-    let text = String::from_utf8_lossy(&out.stdout);
+        &[
+            ("ARENA_BENCH_N", std::ffi::OsStr::new(ARENA_CARS)),
+            ("UBC_FW_ELF", elf.as_os_str()),
+        ],
+    )?;
     let table: Vec<&str> = text.lines().filter(|l| l.starts_with('|')).collect();
     if table.is_empty() {
         bail!("the arena benchmark printed no table");
@@ -602,8 +566,8 @@ fn arena() -> Result<String> {
     }
     let _ = write!(
         md,
-        "\nReproduce: `ARENA_BENCH_N={ARENA_CARS} cargo {}` (or `cargo xtask bench --only arena`).",
-        args.join(" ")
+        "\nReproduce: `ARENA_BENCH_N={ARENA_CARS} cargo test -p arena --release --test arena_bench \
+         -- --ignored --nocapture` (or `cargo xtask bench --only arena`)."
     );
     Ok(md)
 }
@@ -636,6 +600,32 @@ fn field(f: &BTreeMap<String, String>, key: &str) -> Result<f64> {
 
 /// Runs `cmd` and returns its stdout; a failure status is an error unless `any_status` (a
 /// firmware that runs until the cycle limit ends `vtb-run` with status 3).
+/// Runs the ignored tests of one test target in release mode (how the host-driven benchmarks
+/// are packaged) and returns their standard output.
+fn ignored_test(package: &str, test: &str, env: &[(&str, &std::ffi::OsStr)]) -> Result<String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let mut cmd = Command::new(cargo);
+    cmd.args([
+        "test",
+        "-p",
+        package,
+        "--release",
+        "--test",
+        test,
+        "--",
+        "--ignored",
+        "--nocapture",
+    ]);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    run_captured(
+        &mut cmd,
+        &format!("the {test} benchmark of {package}"),
+        false,
+    )
+}
+
 fn run_captured(cmd: &mut Command, what: &str, any_status: bool) -> Result<String> {
     let out = cmd
         .current_dir(workspace_root())
