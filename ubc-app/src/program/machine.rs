@@ -849,13 +849,7 @@ impl Program {
         }
         // Camera follow: the controller holds; the camera's law drives through the same gate
         // rules and the same LBC client slot.
-        if let maneuvers::ManeuverParams::CameraFollow {
-            marker,
-            distance_units,
-            speed_mm_s,
-        } = self.group.params()
-        {
-            self.camera.start_follow(marker, distance_units, speed_mm_s);
+        if self.camera.following() {
             if let Some(c) = self.camera.step(now, may_send) {
                 let m = maneuvers::Command::MoveSv {
                     steering_mrad: c.steering_mrad,
@@ -865,8 +859,6 @@ impl Program {
                     self.camera.unsent();
                 }
             }
-        } else if self.camera.following() {
-            self.camera.stop_follow();
         }
     }
 
@@ -1123,6 +1115,14 @@ impl Program {
                     let _ = self.send(now, Command::Stop, Owner::Stop);
                 } else {
                     self.group.start(params);
+                    if let maneuvers::ManeuverParams::CameraFollow {
+                        marker,
+                        distance_units,
+                        speed_mm_s,
+                    } = params
+                    {
+                        self.camera.start_follow(marker, distance_units, speed_mm_s);
+                    }
                     log.log(
                         now,
                         LogEvent::GroupStarted {
