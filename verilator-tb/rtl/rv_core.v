@@ -1,20 +1,40 @@
 // RV32IMA + Zicsr machine-mode core.
 //
-// Single-issue, one instruction per cycle, two stages: the fetch stage presents the address of
-// the next instruction; at the clock edge the instruction and its two source registers are
-// captured (synchronous reads, so the register file and instruction memory fit block RAM; a
-// result written in the same edge is forwarded). The execute stage decodes, executes, accesses
-// data memory (read data returned in the same cycle) and writes back. Multiplication is a
-// single-cycle 32x32 product (maps to DSP blocks) that also serves the shifts; division and
-// remainder use an iterative restoring divider (34 cycles). WFI stalls until an enabled
-// interrupt is pending. Interrupts are taken between instructions, never inside a division.
+// Single-issue, two stages. The fetch stage presents the address of the next instruction; at
+// the clock edge the instruction and two register-file words are captured (synchronous reads,
+// so the register file and instruction memory fit block RAM; a word written at the same edge
+// is forwarded). The execute stage decodes, executes, accesses data memory (read data returned
+// in the same cycle) and writes back; most instructions take one cycle.
+//
+// The register file has 64 words: x0..x31, then the wide CSRs (mscratch, mepc, mtvec, mtval
+// and the four halves of mcycle and minstret), so they cost block RAM instead of logic. The
+// second read port reads the CSR a SYSTEM instruction names (mepc for MRET); the one write
+// port is shared in time, which gives a few short sequences (`seq`):
+//   EXEC  execute the instruction in `ir`. A CSR instruction retires here (rd <- old value,
+//         CSRs kept in registers written); a trap or interrupt writes mtval here.
+//   EX2   second cycle of a CSR instruction that writes a register-file CSR (the new value,
+//         computed in EXEC, is written), or of an AMO (the ALU combines the loaded word,
+//         forwarded as rs1, with rs2; the result is stored; rd <- loaded word; it retires).
+//   TRAP  second cycle of trap entry: mepc <- pc; fetch from mtvec (read in this cycle).
+//   CNT   add a carry into a counter word in the register file (see below).
+// The counters count in small registers (`cyc_lo`, `ins_lo`, CNT_P bits); when one wraps, a
+// CNT cycle adds 2^CNT_P to the low word in the register file (and a second one carries into
+// the high word). CNT cycles run only between instructions, so a read always sees a settled
+// value: mcycle = {word[31:CNT_P], cyc_lo}.
+//
+// Multiplication is a single-cycle 32x32 product (maps to DSP blocks) that also serves the
+// shifts; division and remainder use an iterative restoring divider (34 cycles). One adder
+// computes ADD/SUB/ADDI/LUI/AUIPC, load/store addresses, jump and branch targets, trap values
+// and counter carries. WFI stalls until an enabled interrupt is pending. Interrupts are taken
+// between instructions, never inside a division.
 //
 // The RVFI-style retirement port is registered: the record of an instruction is valid in the
 // cycle after it completes.
 `default_nettype none
 
 module rv_core #(
-    parameter [31:0] RESET_PC = 32'h8000_0000
+    parameter [31:0] RESET_PC = 32'h8000_0000,
+    parameter integer CNT_P = 6
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -58,32 +78,49 @@ module rv_core #(
     output reg  [2:0]  rvfi_ext_intr_mip
 );
 
-    // ---------------------------------------------------------------- architectural state
-    reg [31:0] pc;
-    reg [31:0] regs [0:31];
-    integer k;
-    initial for (k = 0; k < 32; k = k + 1) regs[k] = 32'd0;  // block-RAM initial contents
+    // Register-file words of the wide CSRs: 32 + {counter, high, instret} for the counters,
+    // 32 + csr[1:0] for 0x340..0x343 (0x342, mcause, is a register), 32 + 2 for mtvec.
+    localparam [5:0] W_MEPC = 6'd33, W_MTVEC = 6'd34, W_MTVAL = 6'd35;
+    localparam [1:0] S_EXEC = 2'd0, S_EX2 = 2'd1, S_TRAP = 2'd2, S_CNT = 2'd3;
 
-    // fetch-stage outputs: the instruction in execute and its source registers
+    // ---------------------------------------------------------------- state
+    reg [31:0] pc;
+    reg [31:0] regs [0:63];
+    integer k;
+    initial for (k = 0; k < 64; k = k + 1) regs[k] = 32'd0;  // block-RAM initial contents
+
+    reg [1:0]  seq;
+    // fetch-stage outputs: the instruction in execute and two register-file words
     reg [31:0] ir;
-    reg [31:0] rf_rs1, rf_rs2;     // register file read data
-    reg        byp1, byp2;         // forward the value written at the fetch edge instead
+    reg [31:0] rf_a, rf_b;
+    reg        byp_a, byp_b;       // forward the word written at the fetch edge instead
     reg [31:0] byp_val;
 
     reg        mstatus_mie, mstatus_mpie;
-    reg [31:0] mie_r;        // only bits 3, 7, 11 are writable
-    reg [31:0] mtvec, mscratch, mepc, mcause, mtval;
-    reg [63:0] mcycle, minstret;
+    reg        mie_e, mie_t, mie_s;
+    reg        mcause_int;
+    reg [3:0]  mcause_code;
+    reg [31:0] csr_new;            // register-file CSR value written in EX2
+    reg [2:0]  seen_mip;           // interrupt lines of the last EXEC cycle
 
-    reg        res_valid;    // LR/SC reservation
+    reg [CNT_P-1:0] cyc_lo, ins_lo;
+    reg        cyc_pl, cyc_ph;     // pending carry into the low / high word of mcycle
+    reg        ins_pl, ins_ph;     // ... of minstret
+    reg        ins_nohi;           // the pending minstret carry stops at the low word
+    reg        cnt_ins, cnt_hi;    // the word a CNT cycle updates
+    reg        cnt_wfi;            // ... while a WFI waits (for the sleep statistics)
+
+    reg        res_valid;          // LR/SC reservation
     reg [31:0] res_addr;
 
-    reg        intr_flag;    // next record is the first instruction of an interrupt handler
+    reg        intr_flag;          // next record is the first instruction of an interrupt handler
     reg [2:0]  intr_mip;
 
-    reg        md_busy;      // iterative divider
+    reg        md_busy;            // iterative divider
     reg [5:0]  md_cnt;
     reg [31:0] md_quo, md_rem, md_div;
+
+    wire ex = !rst && seq == S_EXEC;
 
     // ---------------------------------------------------------------- decode
     wire [31:0] insn   = ir;
@@ -95,16 +132,8 @@ module rv_core #(
     wire [6:0]  f7     = insn[31:25];
     wire [4:0]  f5     = insn[31:27];
 
-    // x0 is never written, so its block-RAM word keeps its initial zero; a write-back is
-    // forwarded only for a nonzero rd.
-    wire [31:0] rs1v = byp1 ? byp_val : rf_rs1;
-    wire [31:0] rs2v = byp2 ? byp_val : rf_rs2;
-
-    wire [31:0] imm_i = {{20{insn[31]}}, insn[31:20]};
-    wire [31:0] imm_s = {{20{insn[31]}}, insn[31:25], insn[11:7]};
-    wire [31:0] imm_b = {{19{insn[31]}}, insn[31], insn[7], insn[30:25], insn[11:8], 1'b0};
-    wire [31:0] imm_u = {insn[31:12], 12'd0};
-    wire [31:0] imm_j = {{11{insn[31]}}, insn[31], insn[19:12], insn[20], insn[30:21], 1'b0};
+    wire [31:0] rs1v = byp_a ? byp_val : rf_a;
+    wire [31:0] rs2v = byp_b ? byp_val : rf_b;   // rs2, or the CSR word of a SYSTEM instruction
 
     wire is_lui    = opcode == 7'b0110111;
     wire is_auipc  = opcode == 7'b0010111;
@@ -137,16 +166,37 @@ module rv_core #(
 
     wire is_div    = is_muldiv && f3[2];
 
-    // ---------------------------------------------------------------- ALU
-    // One adder serves ADD/SUB/ADDI, load/store/AMO addresses and JALR targets; one 33-bit
-    // subtractor serves branches and SLT*; shifts use the multiplier (below).
-    wire [31:0] alu_b  = is_op ? rs2v : imm_i;
-    wire [31:0] add_b  = is_op ? rs2v : is_store ? imm_s : is_amo_any ? 32'd0 : imm_i;
-    wire        do_sub = is_op && f7[5];
-    wire [31:0] sum    = rs1v + (do_sub ? ~add_b : add_b) + {31'd0, do_sub};
+    // ---------------------------------------------------------------- adder
+    // Operand A: pc for AUIPC, JAL, branches and the TRAP cycle (mepc <- pc + 0), zero for LUI,
+    // else rs1. Operand B: rs2 (inverted for SUB; for AMOADD in EX2), the instruction's
+    // immediate, zero for atomic addresses and TRAP, the carry for CNT. The immediate is
+    // picked by opcode only (illegal encodings never use the sum).
+    wire op_u = !opcode[6] && opcode[4] && opcode[2];        // LUI, AUIPC
+    wire op_j = opcode[6] && opcode[3];                      // JAL
+    wire op_b = opcode[6] && !opcode[4] && !opcode[2];       // branches
+    wire op_s = !opcode[6] && opcode[5] && !opcode[4];       // stores, atomics (zero)
+    wire op_r = opcode == 7'b0110011;                        // OP
+    wire op_amo = op_s && opcode[2];                         // atomics
+    wire [31:0] imm =
+        op_u ? {insn[31:12], 12'd0} :
+        op_j ? {{11{insn[31]}}, insn[31], insn[19:12], insn[20], insn[30:21], 1'b0} :
+        op_b ? {{19{insn[31]}}, insn[31], insn[7], insn[30:25], insn[11:8], 1'b0} :
+        op_s ? (opcode[2] ? 32'd0 : {{20{insn[31]}}, insn[31:25], insn[11:7]}) :
+        {{20{insn[31]}}, insn[31:20]};
 
+    wire        ex_pc   = seq == S_TRAP || (!seq[1] && ((op_u && !opcode[5]) || op_j || op_b));
+    wire        do_sub  = !seq[1] && op_r && f7[5];
+    wire [31:0] add_a   = ex_pc ? pc : (!seq[1] && op_u && opcode[5]) ? 32'd0 : rs1v;
+    wire [31:0] alu_b   = op_r || op_amo ? rs2v : imm;
+    wire        b_zero  = seq[1] || (op_amo && seq == S_EXEC);   // TRAP, CNT, atomic address
+    wire [31:0] cnt_inc = seq == S_CNT ? (cnt_hi ? 32'd1 : 32'd1 << CNT_P) : 32'd0;
+    wire [31:0] add_b   = ((alu_b & ~{32{b_zero}}) ^ {32{do_sub}}) | cnt_inc;
+    wire [32:0] sum33   = {1'b0, add_a} + {1'b0, add_b} + {32'd0, do_sub};
+    wire [31:0] sum     = sum33[31:0];
+
+    // ---------------------------------------------------------------- comparison, logic
     wire [31:0] cmp_b      = is_branch ? rs2v : alu_b;
-    wire        cmp_signed = is_branch ? !f3[1] : !f3[0];
+    wire        cmp_signed = is_branch ? !f3[1] : op_amo ? !f5[3] : !f3[0];
     wire [32:0] cmp_diff   = {cmp_signed & rs1v[31], rs1v} - {cmp_signed & cmp_b[31], cmp_b};
     wire        lt         = cmp_diff[32];
     wire        eq         = rs1v == cmp_b;
@@ -154,15 +204,15 @@ module rv_core #(
 
     wire [4:0]  shamt   = alu_b[4:0];
 
-    reg  [31:0] alu_out;
+    // SLT[U], XOR, OR, AND; AMOXOR/AMOOR/AMOAND map onto the same codes
+    wire [2:0]  logic_op = op_amo ? {1'b1, f5[3], f5[3] & f5[2]} : f3;
+    reg  [31:0] logic_out;
     always @(*) begin
-        case (f3)
-            3'd0: alu_out = sum;
-            3'd1, 3'd5: alu_out = mul_out;  // shifts run on the multiplier
-            3'd2, 3'd3: alu_out = {31'd0, lt};
-            3'd4: alu_out = rs1v ^ alu_b;
-            3'd6: alu_out = rs1v | alu_b;
-            default: alu_out = rs1v & alu_b;
+        case (logic_op)
+            3'd4: logic_out = rs1v ^ alu_b;
+            3'd6: logic_out = rs1v | alu_b;
+            3'd7: logic_out = rs1v & alu_b;
+            default: logic_out = {31'd0, lt};
         endcase
     end
 
@@ -208,7 +258,7 @@ module rv_core #(
                                 f3[1:0] == 2'd2 ? ls_addr[1:0] != 2'd0 : 1'b0;
     wire [4:0]  ls_shift = {ls_addr[1:0], 3'd0};
     wire [31:0] ld_shifted = dmem_rdata >> ls_shift;
-    reg  [31:0] load_out;
+    reg  [31:0] load_out;   // also LR and the old value of an AMO (f3 = 2)
     always @(*) begin
         case (f3)
             3'd0: load_out = {{24{ld_shifted[7]}}, ld_shifted[7:0]};
@@ -224,57 +274,40 @@ module rv_core #(
     wire [31:0] st_data = f3[1:0] == 2'd0 ? {4{rs2v[7:0]}} :
                           f3[1:0] == 2'd1 ? {2{rs2v[15:0]}} : rs2v;
 
-    // AMOMIN/MAX[U] share one 33-bit comparison (sign-extended for the signed pair).
-    wire        amo_signed = !f5[3];
-    wire [32:0] amo_diff = {amo_signed & dmem_rdata[31], dmem_rdata} -
-                           {amo_signed & rs2v[31], rs2v};
-    wire        amo_lt = amo_diff[32];
-    reg  [31:0] amo_out;
-    always @(*) begin
-        case (f5)
-            5'b00001: amo_out = rs2v;
-            5'b00000: amo_out = dmem_rdata + rs2v;
-            5'b00100: amo_out = dmem_rdata ^ rs2v;
-            5'b01100: amo_out = dmem_rdata & rs2v;
-            5'b01000: amo_out = dmem_rdata | rs2v;
-            5'b10000: amo_out = amo_lt ? dmem_rdata : rs2v;
-            5'b10100: amo_out = amo_lt ? rs2v : dmem_rdata;
-            5'b11000: amo_out = amo_lt ? dmem_rdata : rs2v;
-            default:  amo_out = amo_lt ? rs2v : dmem_rdata;
-        endcase
-    end
+    // AMO, second cycle: rs1v is the loaded word; the adder, the logic unit and the
+    // comparison give the new one.
+    wire [31:0] amo_out = f5[4] ? ((lt ^ f5[2]) ? rs1v : rs2v) :
+                          f5[3:2] != 2'b00 ? logic_out : f5[0] ? rs2v : sum;
     wire sc_ok = res_valid && res_addr == ls_addr;
 
     // ---------------------------------------------------------------- CSRs
     wire [11:0] csr_addr = insn[31:20];
-    wire [31:0] mip_v = {20'd0, irq_external, 3'd0, irq_timer, 3'd0, irq_software, 3'd0};
-    wire [31:0] mstatus_v = {19'd0, 2'b11, 3'd0, mstatus_mpie, 3'd0, mstatus_mie, 3'd0};
-    // The read mux decodes only the address bits that tell the implemented CSRs apart;
-    // `csr_exists` decodes the whole address (anything else is an illegal instruction).
-    reg  [31:0] csr_rdata;
-    reg         csr_exists;
+    wire [2:0]  lines    = {irq_external, irq_timer, irq_software};
+    wire [31:0] mip_v    = {20'd0, irq_external, 3'd0, irq_timer, 3'd0, irq_software, 3'd0};
+    wire [31:0] mie_v    = {20'd0, mie_e, 3'd0, mie_t, 3'd0, mie_s, 3'd0};
+    // Classes of the implemented addresses (a committing CSR instruction has a legal one).
+    wire c_cnt  = csr_addr[11] && csr_addr[10:8] != 3'b111;          // mcycle(h), minstret(h)
+    wire c_34x  = !csr_addr[11] && csr_addr[6];                      // 0x340..0x344
+    wire c_30x  = !csr_addr[11] && !csr_addr[6] && !csr_addr[4];     // 0x300..0x305
+    wire in_rf  = c_cnt || (c_34x && !csr_addr[2] && csr_addr[1:0] != 2'd2) ||
+                  (c_30x && csr_addr[2] && csr_addr[0]);
+    wire cnt_lo = c_cnt && !csr_addr[7];
+    wire [CNT_P-1:0] lo_bits = csr_addr[1] ? ins_lo : cyc_lo;
+    reg  [31:0] csr_reg;    // CSRs kept in registers (and constants)
     always @(*) begin
-        if (csr_addr[11])
-            csr_rdata = csr_addr[10:8] == 3'b111 ? 32'd0 :
-                        csr_addr[1] ? (csr_addr[7] ? minstret[63:32] : minstret[31:0]) :
-                                      (csr_addr[7] ? mcycle[63:32] : mcycle[31:0]);
-        else if (csr_addr[6])
+        csr_reg = 32'd0;
+        if (c_34x)
+            csr_reg = csr_addr[2] ? mip_v : {mcause_int, 27'd0, mcause_code};
+        else if (c_30x)
             case (csr_addr[2:0])
-                3'd0: csr_rdata = mscratch;
-                3'd1: csr_rdata = mepc;
-                3'd2: csr_rdata = mcause;
-                3'd3: csr_rdata = mtval;
-                default: csr_rdata = mip_v;
-            endcase
-        else if (csr_addr[4]) csr_rdata = 32'd0;
-        else
-            case (csr_addr[2:0])
-                3'd0: csr_rdata = mstatus_v;
-                3'd1: csr_rdata = 32'h4000_1101;
-                3'd4: csr_rdata = mie_r;
-                default: csr_rdata = mtvec;
+                3'd0: csr_reg = {19'd0, 2'b11, 3'd0, mstatus_mpie, 3'd0, mstatus_mie, 3'd0};
+                3'd1: csr_reg = 32'h4000_1101;
+                default: csr_reg = mie_v;
             endcase
     end
+    wire [31:0] csr_rdata = !in_rf ? csr_reg :
+                            cnt_lo ? {rs2v[31:CNT_P], lo_bits} : rs2v;
+    reg         csr_exists;
     always @(*) begin
         case (csr_addr)
             12'h300, 12'h301, 12'h304, 12'h305, 12'h310, 12'h340, 12'h341, 12'h342, 12'h343,
@@ -284,99 +317,194 @@ module rv_core #(
         endcase
     end
     wire        csr_writes = f3[1:0] == 2'b01 || rs1 != 5'd0;
-    wire [31:0] csr_src    = f3[2] ? {27'd0, rs1} : rs1v;
-    wire [31:0] csr_wdata  = f3[1:0] == 2'b01 ? csr_src :
-                             f3[1:0] == 2'b10 ? csr_rdata | csr_src : csr_rdata & ~csr_src;
+    // immediate forms read x0 as rs1, so only the low five bits need the immediate
+    wire [31:0] csr_src    = {rs1v[31:5], f3[2] ? rs1 : rs1v[4:0]};
+    wire        c_rw       = f3[1:0] == 2'b01, c_rc = f3[1:0] == 2'b11;
+    wire [31:0] csr_wdata  = (csr_rdata & ~({32{c_rw}} | ({32{c_rc}} & csr_src))) |
+                             (csr_src & ~{32{c_rc}});
     wire        csr_illegal = !csr_exists || (csr_addr[11:10] == 2'b11 && csr_writes);
+    // WARL on the way into the register file: mepc is word aligned; mtvec bit 1 reads zero,
+    // and a vectored table (mode 1) is 64-byte aligned so that entry = base | cause << 2.
+    wire        w_mepc  = c_34x && csr_addr[0] && !csr_addr[1];
+    wire        w_mtvec = c_30x;
+    wire [31:0] csr_wval = {csr_wdata[31:6],
+                            csr_wdata[5:2] & ~{4{w_mtvec && csr_wdata[0]}},
+                            csr_wdata[1] & !(w_mepc || w_mtvec),
+                            csr_wdata[0] & !w_mepc};
+    // CSR writes that go to registers, decided by the address bits that tell them apart.
+    wire        wr_csr     = csr_ex && csr_writes;
+    wire        wr_mstatus = wr_csr && c_30x && csr_addr[2:0] == 3'd0;
+    wire        wr_mie     = wr_csr && c_30x && csr_addr[2:0] == 3'd4;
+    wire        wr_mcause  = wr_csr && c_34x && csr_addr[2:0] == 3'd2;
+    wire        a_ins_lo   = csr_writes && cnt_lo && csr_addr[1];   // by the address only
+    wire        a_ins_hi   = csr_writes && c_cnt && csr_addr[7] && csr_addr[1];
+    wire        wr_cyc_lo  = wr_csr && cnt_lo && !csr_addr[1];
+    wire        wr_ins_lo  = csr_ex && a_ins_lo;
 
     // ---------------------------------------------------------------- control flow, traps
     wire legal = is_lui | is_auipc | is_jal | is_jalr | is_branch | is_load | is_store |
                  is_opimm | is_op | is_muldiv | is_fence | is_ecall | is_ebreak | is_mret |
                  is_wfi | is_csr | is_amo_any;
     wire [31:0] pc_plus4 = pc + 32'd4;
-    wire [31:0] jalr_tgt = sum & ~32'd1;
-    wire [31:0] pc_tgt   = pc + (is_jal ? imm_j : is_auipc ? imm_u : imm_b);
-    wire        to_tgt   = is_jal | (is_branch && br_taken);
-    wire [31:0] next_pc  = ({32{to_tgt}} & pc_tgt) | ({32{is_jalr}} & jalr_tgt) |
-                           ({32{is_mret}} & mepc) |
-                           ({32{!(to_tgt | is_jalr | is_mret)}} & pc_plus4);
     wire jump = is_jal | is_jalr | (is_branch && br_taken);
+    wire [31:0] next_pc  = jump ? {sum[31:1], 1'b0} :
+                           is_mret ? {rs2v[31:2], 2'b00} : pc_plus4;
 
     wire exc_illegal = !legal || (is_csr && csr_illegal) || insn[1:0] != 2'b11;
-    wire exc_fetch   = !exc_illegal && jump && next_pc[1:0] != 2'd0;
+    wire exc_fetch   = !exc_illegal && jump && sum[1];
     wire exc_load    = !exc_illegal && (is_load || is_lr) && ls_misaligned;
     wire exc_store   = !exc_illegal && (is_store || is_sc || is_amo) && ls_misaligned;
-    wire exc = exc_illegal | exc_fetch | exc_load | exc_store | is_ecall | is_ebreak;
-    wire [31:0] exc_cause = exc_illegal ? 32'd2 : exc_fetch ? 32'd0 : exc_load ? 32'd4 :
-                            exc_store ? 32'd6 : is_ebreak ? 32'd3 : 32'd11;
-    wire [31:0] exc_tval  = exc_illegal ? insn : exc_fetch ? next_pc :
-                            (exc_load | exc_store) ? ls_addr : is_ebreak ? pc : 32'd0;
+    wire exc_misal   = exc_fetch | exc_load | exc_store;
+    wire exc = exc_illegal | exc_misal | is_ecall | is_ebreak;
+    wire [3:0] exc_cause = exc_illegal ? 4'd2 : exc_fetch ? 4'd0 : exc_load ? 4'd4 :
+                           exc_store ? 4'd6 : is_ebreak ? 4'd3 : 4'd11;
 
-    wire [31:0] irq_pend = mip_v & mie_r;
-    wire        irq_take = mstatus_mie && irq_pend != 32'd0 && !md_busy && !is_wfi;
-    wire [31:0] irq_cause = irq_pend[11] ? 32'd11 : irq_pend[3] ? 32'd3 : 32'd7;
-    wire [31:0] tvec_base = {mtvec[31:2], 2'b00};
-    wire [31:0] irq_target = mtvec[0] ? tvec_base + {irq_cause[29:0], 2'b00} : tvec_base;
+    wire [2:0]  irq_pend = lines & {mie_e, mie_t, mie_s};
+    wire        irq_take = ex && mstatus_mie && irq_pend != 3'd0 && !md_busy && !is_wfi;
+    wire [3:0]  irq_cause = irq_pend[2] ? 4'd11 : irq_pend[0] ? 4'd3 : 4'd7;
+    // in TRAP, rs2v is mtvec
+    wire [31:0] trap_pc = {rs2v[31:6], rs2v[5:2] | (mcause_int && rs2v[0] ? mcause_code : 4'd0),
+                           2'b00};
 
-    wire stall  = (is_div && !md_done) || (is_wfi && irq_pend == 32'd0);
-    assign sleeping = !rst && is_wfi && irq_pend == 32'd0;
-    wire commit = !rst && !irq_take && !stall && !exc;
+    wire stall     = (is_div && !md_done) || (is_wfi && irq_pend == 3'd0);
+    // CNT cycles taken while a WFI waits count as sleep too: the program is not running
+    assign sleeping = (ex && is_wfi && irq_pend == 3'd0) || (!rst && seq == S_CNT && cnt_wfi);
+    wire trap_in   = ex && (irq_take || exc);
+    wire csr_ex    = ex && !irq_take && !exc && is_csr;
+    wire csr_rf_w  = csr_ex && in_rf && csr_writes;     // finishes in EX2
+    wire amo_a     = ex && !irq_take && !exc && is_amo;
+    wire two_ph    = csr_rf_w || amo_a;
+    wire in_ex2    = !rst && seq == S_EX2;
+    wire commit_ex = ex && !irq_take && !exc && !stall && !is_amo;
+    wire retire    = commit_ex || (in_ex2 && is_amo);
 
     wire mem_rd = is_load | is_lr | is_amo;
     wire mem_wr = is_store | is_amo | (is_sc && sc_ok);
 
-    // Address of the instruction after this cycle.
-    wire [31:0] fetch_pc = rst ? RESET_PC : irq_take ? irq_target : stall ? pc :
-                           exc ? tvec_base : next_pc;
+    // ---------------------------------------------------------------- counters
+    // minstret: a write of the low word replaces this instruction's increment (if the old
+    // value was all ones, that increment still carries into the high word); a write of the
+    // high word replaces the carry of this instruction's increment.
+    wire ins_inc   = retire && !(is_csr && a_ins_lo);
+    wire cyc_wrap  = !rst && !wr_cyc_lo && cyc_lo == {CNT_P{1'b1}};
+    wire ins_wrap  = ins_inc && ins_lo == {CNT_P{1'b1}};
+    wire cnt_carry = sum33[32];
+    wire in_cnt    = !rst && seq == S_CNT;
+    wire cyc_pl_n  = (cyc_pl || cyc_wrap) && !(in_cnt && !cnt_ins && !cnt_hi);
+    wire cyc_ph_n  = (cyc_ph || (in_cnt && !cnt_ins && !cnt_hi && cnt_carry)) &&
+                     !(in_cnt && !cnt_ins && cnt_hi);
+    wire ins_pl_n  = (ins_pl || ins_wrap) && !(in_cnt && cnt_ins && !cnt_hi);
+    wire ins_ph_n  = (ins_ph || (in_cnt && cnt_ins && !cnt_hi && cnt_carry && !ins_nohi) ||
+                      (wr_ins_lo && csr_rdata == 32'hffff_ffff)) &&
+                     !(in_cnt && cnt_ins && cnt_hi);
+
+    // ---------------------------------------------------------------- sequencing
+    // A boundary: the next cycle may start an instruction (a WFI that waits is one too).
+    wire boundary = !rst && !(ex && (trap_in || two_ph || (stall && !is_wfi)));
+    wire to_cnt   = boundary && (cyc_pl_n || cyc_ph_n || ins_pl_n || ins_ph_n);
+    wire n_ins    = !(cyc_pl_n || cyc_ph_n);
+    wire n_hi     = n_ins ? !ins_pl_n : !cyc_pl_n;
+    wire [1:0] seq_n = rst ? S_EXEC : to_cnt ? S_CNT : trap_in ? S_TRAP :
+                       two_ph ? S_EX2 : S_EXEC;
+
+    wire hold = seq == S_CNT || trap_in || two_ph || (ex && stall);
+    wire [31:0] fetch_pc = rst ? RESET_PC : seq == S_TRAP ? trap_pc : hold ? pc : next_pc;
     assign imem_addr  = fetch_pc;
-    assign dmem_addr  = {ls_addr[31:2], 2'b00};
-    assign dmem_re    = commit && mem_rd;
+    // an AMO stores in EX2 to the address it loaded from
+    assign dmem_addr  = seq == S_EX2 ? {res_addr[31:2], 2'b00} : {ls_addr[31:2], 2'b00};
+    assign dmem_re    = (commit_ex && mem_rd) || amo_a;
     assign dmem_rmask = mem_rd ? (is_load ? st_mask : 4'b1111) : 4'b0000;
-    assign dmem_wstrb = (commit && mem_wr) ? (is_store ? st_mask : 4'b1111) : 4'b0000;
+    assign dmem_wstrb = (commit_ex && mem_wr) ? (is_store ? st_mask : 4'b1111) :
+                        (in_ex2 && is_amo) ? 4'b1111 : 4'b0000;
     assign dmem_wdata = is_amo ? amo_out : st_data;
 
-    reg [31:0] rd_val;
-    always @(*) begin
-        // the decoded kinds are exclusive, so an AND-OR replaces a priority chain
-        rd_val = ({32{is_lui}} & imm_u) | ({32{is_auipc}} & pc_tgt) |
-                 ({32{is_jal | is_jalr}} & pc_plus4) | ({32{is_load}} & load_out) |
-                 ({32{is_lr | is_amo}} & dmem_rdata) | {31'd0, is_sc & !sc_ok} |
-                 ({32{is_csr}} & csr_rdata) | ({32{is_muldiv & f3[2]}} & div_out) |
-                 ({32{is_muldiv & !f3[2]}} & mul_out) | ({32{is_opimm | is_op}} & alu_out);
-    end
+    // ---------------------------------------------------------------- write-back
+    // One write per cycle: rd of a retiring instruction, the CSR word of a CSR instruction,
+    // mtval at trap entry (the instruction, the faulting address or target, or zero), mepc in
+    // TRAP, a counter word in CNT. The sources are exclusive, so an AND-OR picks the value.
+    wire t_ex   = ex && !trap_in;
+    wire t_sum  = (t_ex && (is_lui || is_auipc || ((is_opimm || is_op) && f3 == 3'd0))) ||
+                  (trap_in && !irq_take && exc_misal) || seq == S_TRAP || seq == S_CNT;
+    wire t_link = t_ex && (is_jal || is_jalr);
+    // an AMO's loaded word: forwarded as rs1 to EX2 (not written), then rd in EX2
+    wire t_load = (t_ex && (is_load || is_lr)) || ((amo_a || in_ex2) && is_amo);
+    wire t_logic = t_ex && (is_opimm || is_op) && f3 != 3'd0 && f3[1:0] != 2'b01;
+    wire t_mul  = t_ex && ((is_muldiv && !f3[2]) || is_shift);
+    wire t_div  = t_ex && is_div;
+    wire t_insn = trap_in && !irq_take && exc_illegal;
+    wire t_csrr = t_ex && is_csr;
+    wire t_new  = in_ex2 && is_csr;
+    wire [31:0] wb_val =
+        ({32{t_sum}} & {sum[31:1], sum[0] & !(trap_in && is_jalr)}) |
+        ({32{t_link}} & pc_plus4) | ({32{t_load}} & load_out) |
+        ({32{t_logic}} & logic_out) | ({32{t_mul}} & mul_out) | ({32{t_div}} & div_out) |
+        ({32{t_insn}} & insn) | ({32{t_csrr}} & csr_rdata) | ({32{t_new}} & csr_new) |
+        {31'd0, t_ex && is_sc && !sc_ok};
     wire writes_rd = is_lui | is_auipc | is_jal | is_jalr | is_load | is_opimm | is_op |
                      is_muldiv | is_csr | is_amo_any;
     wire [4:0] rd_eff = (writes_rd && rd != 5'd0) ? rd : 5'd0;
+    wire [5:0] wb_addr = seq == S_CNT ? {3'b100, 1'b1, cnt_hi, cnt_ins} :
+                         seq == S_TRAP ? W_MEPC : trap_in ? W_MTVAL :
+                         t_new ? {3'b100, c_cnt, c_cnt ? {csr_addr[7], csr_addr[1]} :
+                                                c_34x ? csr_addr[1:0] : 2'b10} :
+                         {1'b0, rd_eff};
+    wire wb_en = (commit_ex && rd_eff != 5'd0) || (in_ex2 && is_amo && rd_eff != 5'd0) ||
+                 t_new || trap_in || (!rst && seq[1]);
 
     // ---------------------------------------------------------------- fetch stage
-    wire [4:0] f_rs1 = imem_rdata[19:15];
-    wire [4:0] f_rs2 = imem_rdata[24:20];
-    wire       wb    = commit && rd_eff != 5'd0;
+    // Port A reads rs1, or the counter word of a coming CNT cycle. Port B reads rs2, the CSR
+    // word of a SYSTEM instruction (mepc for MRET/ECALL/EBREAK/WFI), or mtvec for TRAP.
+    wire [31:0] fi = imem_rdata;
+    wire        f_sys = fi[6:0] == 7'b1110011;
+    // (x0 for the immediate CSR forms, whose rs1 field is the immediate)
+    wire [5:0]  port_a = to_cnt ? {3'b100, 1'b1, n_hi, n_ins} :
+                                  {1'b0, fi[19:15] & ~{5{f_sys && fi[14]}}};
+    wire [5:0]  port_b = trap_in ? W_MTVEC :
+                         !f_sys ? {1'b0, fi[24:20]} :
+                         fi[14:12] == 3'd0 ? W_MEPC :
+                         {3'b100, fi[31], fi[31] ? {fi[27], fi[21]} :
+                                          fi[26] ? fi[21:20] : 2'b10};
     always @(posedge clk) begin
         pc <= fetch_pc;
         ir <= imem_rdata;
-        rf_rs1 <= regs[f_rs1];
-        rf_rs2 <= regs[f_rs2];
-        byp1 <= wb && rd_eff == f_rs1;
-        byp2 <= wb && rd_eff == f_rs2;
-        byp_val <= rd_val;
-        if (wb) regs[rd_eff] <= rd_val;
+        rf_a <= regs[port_a];
+        rf_b <= regs[port_b];
+        byp_a <= (wb_en && wb_addr == port_a) || amo_a;
+        byp_b <= wb_en && wb_addr == port_b;
+        byp_val <= wb_val;
+        if (wb_en) regs[wb_addr] <= wb_val;
     end
 
     // ---------------------------------------------------------------- state update
     always @(posedge clk) begin
         rvfi_valid <= 1'b0;
+        seq <= seq_n;
+        cyc_pl <= cyc_pl_n;
+        cyc_ph <= cyc_ph_n;
+        ins_pl <= ins_pl_n;
+        ins_ph <= ins_ph_n;
+        if (to_cnt) begin
+            cnt_ins <= n_ins;
+            cnt_hi <= n_hi;
+            if (seq != S_CNT) cnt_wfi <= ex && stall && is_wfi;
+        end
+        if (ex) seen_mip <= lines;
         if (rst) begin
+            seq <= S_EXEC;
+            cyc_pl <= 1'b0;
+            cyc_ph <= 1'b0;
+            ins_pl <= 1'b0;
+            ins_ph <= 1'b0;
+            ins_nohi <= 1'b0;
+            cyc_lo <= {CNT_P{1'b0}};
+            ins_lo <= {CNT_P{1'b0}};
             mstatus_mie <= 1'b0;
             mstatus_mpie <= 1'b0;
-            mie_r <= 32'd0;
-            mtvec <= 32'd0;
-            mscratch <= 32'd0;
-            mepc <= 32'd0;
-            mcause <= 32'd0;
-            mtval <= 32'd0;
-            mcycle <= 64'd0;
-            minstret <= 64'd0;
+            mie_e <= 1'b0;
+            mie_t <= 1'b0;
+            mie_s <= 1'b0;
+            mcause_int <= 1'b0;
+            mcause_code <= 4'd0;
             res_valid <= 1'b0;
             res_addr <= 32'd0;
             intr_flag <= 1'b0;
@@ -385,16 +513,21 @@ module rv_core #(
             md_cnt <= 6'd0;
             rvfi_order <= 64'd0;
         end else begin
-            mcycle <= mcycle + 64'd1;
-            if (irq_take) begin
-                mepc <= pc;
-                mcause <= {1'b1, irq_cause[30:0]};
-                mtval <= 32'd0;
+            cyc_lo <= wr_cyc_lo ? csr_wdata[CNT_P-1:0] : cyc_lo + 1'b1;
+            if (wr_ins_lo) ins_lo <= csr_wdata[CNT_P-1:0];
+            else if (ins_inc) ins_lo <= ins_lo + 1'b1;
+            if (ins_wrap) ins_nohi <= is_csr && a_ins_hi;
+
+            if (trap_in) begin
+                mcause_int <= irq_take;
+                mcause_code <= irq_take ? irq_cause : exc_cause;
                 mstatus_mpie <= mstatus_mie;
                 mstatus_mie <= 1'b0;
-                intr_flag <= 1'b1;
-                intr_mip <= {irq_external, irq_timer, irq_software};
-            end else if (stall) begin
+                if (irq_take) begin
+                    intr_flag <= 1'b1;
+                    intr_mip <= lines;
+                end
+            end else if (ex && stall) begin
                 if (is_div) begin
                     if (!md_busy) begin
                         md_busy <= 1'b1;
@@ -408,83 +541,57 @@ module rv_core #(
                         md_rem <= md_dif[32] ? md_sh[31:0] : md_dif[31:0];
                     end
                 end
-            end else begin
+            end else if (amo_a) begin
+                // the AMO's address is kept for EX2; a reservation does not survive an AMO
+                res_valid <= 1'b0;
+                res_addr <= ls_addr;
+            end else if (csr_ex) begin
+                if (csr_rf_w) csr_new <= csr_wval;
+                if (wr_mstatus) begin
+                    mstatus_mie <= csr_wdata[3];
+                    mstatus_mpie <= csr_wdata[7];
+                end
+                if (wr_mie) begin
+                    mie_e <= csr_wdata[11];
+                    mie_t <= csr_wdata[7];
+                    mie_s <= csr_wdata[3];
+                end
+                if (wr_mcause) begin  // WLRL: the interrupt bit and a 4-bit code
+                    mcause_int <= csr_wdata[31];
+                    mcause_code <= csr_wdata[3:0];
+                end
+            end else if (commit_ex) begin
                 md_busy <= 1'b0;
+                if (is_lr) begin
+                    res_valid <= 1'b1;
+                    res_addr <= ls_addr;
+                end
+                if (is_sc) res_valid <= 1'b0;
+                if (is_mret) begin
+                    mstatus_mie <= mstatus_mpie;
+                    mstatus_mpie <= 1'b1;
+                end
+            end
+
+            // retirement records: an instruction that completes, or the trap it raised
+            if (retire || (seq == S_TRAP && !mcause_int)) begin
                 intr_flag <= 1'b0;
                 rvfi_valid <= 1'b1;
                 rvfi_order <= rvfi_order + 64'd1;
                 rvfi_insn <= insn;
                 rvfi_intr <= intr_flag;
                 rvfi_ext_intr_mip <= intr_flag ? intr_mip : 3'd0;
-                rvfi_ext_mip <= {irq_external, irq_timer, irq_software};
+                rvfi_ext_mip <= ex ? lines : seen_mip;
                 rvfi_pc_rdata <= pc;
-                rvfi_trap <= exc;
-                if (exc) begin
-                    mepc <= pc;
-                    mcause <= exc_cause;
-                    mtval <= exc_tval;
-                    mstatus_mpie <= mstatus_mie;
-                    mstatus_mie <= 1'b0;
-                    rvfi_pc_wdata <= tvec_base;
-                    rvfi_rd_addr <= 5'd0;
-                    rvfi_rd_wdata <= 32'd0;
-                    rvfi_mem_addr <= 32'd0;
-                    rvfi_mem_rmask <= 4'd0;
-                    rvfi_mem_wmask <= 4'd0;
-                    rvfi_mem_rdata <= 32'd0;
-                    rvfi_mem_wdata <= 32'd0;
-                end else begin
-                    minstret <= minstret + 64'd1;
-                    rvfi_pc_wdata <= next_pc;
-                    rvfi_rd_addr <= rd_eff;
-                    rvfi_rd_wdata <= rd_eff != 5'd0 ? rd_val : 32'd0;
-                    rvfi_mem_addr <= (mem_rd | mem_wr) ? dmem_addr : 32'd0;
-                    rvfi_mem_rmask <= dmem_rmask;
-                    rvfi_mem_wmask <= dmem_wstrb;
-                    rvfi_mem_rdata <= mem_rd ? dmem_rdata : 32'd0;
-                    rvfi_mem_wdata <= mem_wr ? dmem_wdata : 32'd0;
-                    if (is_lr) begin
-                        res_valid <= 1'b1;
-                        res_addr <= ls_addr;
-                    end
-                    if (is_sc) res_valid <= 1'b0;
-                    if (is_mret) begin
-                        mstatus_mie <= mstatus_mpie;
-                        mstatus_mpie <= 1'b1;
-                    end
-                    if (is_csr) begin
-                        // A committing CSR instruction has a legal address, so the
-                        // writes decode only the bits that tell the writable CSRs apart
-                        // (misa, mstatush and mip ignore writes).
-                        if (csr_writes) begin
-                            if (csr_addr[11])  // mcycle(h), minstret(h)
-                                case ({csr_addr[7], csr_addr[1]})
-                                    2'b00: mcycle[31:0] <= csr_wdata;
-                                    2'b10: mcycle[63:32] <= csr_wdata;
-                                    2'b01: minstret[31:0] <= csr_wdata;
-                                    default: minstret[63:32] <= csr_wdata;
-                                endcase
-                            else if (csr_addr[6])  // 0x340..0x344
-                                case (csr_addr[2:0])
-                                    3'd0: mscratch <= csr_wdata;
-                                    3'd1: mepc <= {csr_wdata[31:2], 2'b00};
-                                    3'd2: mcause <= csr_wdata & 32'h8000_000f;  // WLRL
-                                    3'd3: mtval <= csr_wdata;
-                                    default: ;
-                                endcase
-                            else if (!csr_addr[4])  // 0x300..0x305
-                                case (csr_addr[2:0])
-                                    3'd0: begin
-                                        mstatus_mie <= csr_wdata[3];
-                                        mstatus_mpie <= csr_wdata[7];
-                                    end
-                                    3'd4: mie_r <= csr_wdata & 32'h0000_0888;
-                                    3'd5: mtvec <= {csr_wdata[31:2], 1'b0, csr_wdata[0]};
-                                    default: ;
-                                endcase
-                        end
-                    end
-                end
+                rvfi_trap <= !retire;
+                rvfi_pc_wdata <= retire ? next_pc : trap_pc;
+                rvfi_rd_addr <= retire ? rd_eff : 5'd0;
+                rvfi_rd_wdata <= retire && rd_eff != 5'd0 ? wb_val : 32'd0;
+                rvfi_mem_addr <= retire && (mem_rd | mem_wr) ? dmem_addr : 32'd0;
+                rvfi_mem_rmask <= retire ? dmem_rmask : 4'd0;
+                rvfi_mem_wmask <= retire ? dmem_wstrb : 4'd0;
+                rvfi_mem_rdata <= retire && mem_rd ? dmem_rdata : 32'd0;
+                rvfi_mem_wdata <= retire && mem_wr ? dmem_wdata : 32'd0;
             end
         end
     end

@@ -1,6 +1,7 @@
 //! Golden RV32IMA + Zicsr machine-mode instruction-set model: the reference the RTL core is
 //! checked against, one retired instruction at a time. It follows the privileged spec's
-//! choices the core makes (documented in docs/soft-core.md): direct or vectored mtvec,
+//! choices the core makes (documented in docs/soft-core.md): direct or vectored mtvec (a
+//! vectored table is 64-byte aligned), mtval is zero for EBREAK,
 //! misaligned accesses trap, all mip bits are read-only wires, mcycle follows the clock (the
 //! checker supplies its value), and interrupts are taken between instructions.
 
@@ -179,7 +180,8 @@ impl Hart {
                 self.mstatus_mpie = v & (1 << 7) != 0;
             }
             0x304 => self.mie = v & MIE_MASK,
-            0x305 => self.mtvec = v & !2,
+            // mode 1 (vectored) needs a 64-byte aligned table: entry = base | cause << 2
+            0x305 => self.mtvec = if v & 1 != 0 { v & !0x3e } else { v & !2 },
             0x340 => self.mscratch = v,
             0x341 => self.mepc = v & !3,
             // WLRL: only the interrupt bit and a 4-bit code are kept
@@ -410,7 +412,7 @@ impl Hart {
         let illegal = Outcome::Trap(cause::ILLEGAL_INSTRUCTION, insn);
         match (f3, insn) {
             (0, 0x0000_0073) => Outcome::Trap(cause::ECALL_M, 0),
-            (0, 0x0010_0073) => Outcome::Trap(cause::BREAKPOINT, self.pc),
+            (0, 0x0010_0073) => Outcome::Trap(cause::BREAKPOINT, 0),
             (0, 0x3020_0073) => {
                 self.mstatus_mie = self.mstatus_mpie;
                 self.mstatus_mpie = true;
@@ -488,6 +490,9 @@ impl Hart {
                 *rd_val = Some(u32::from(!ok));
             }
             _ => {
+                // the core keeps one address register for LR and AMOs, so an AMO ends a
+                // reservation (an SC after it fails, as the spec allows)
+                self.reservation = None;
                 let old = bus.load(addr);
                 let new = match f5 {
                     amo::SWAP => b,
@@ -616,12 +621,12 @@ mod tests {
     #[test]
     fn vectored_interrupt_entry() {
         let mut h = Hart::new(BASE);
-        h.mtvec = BASE + 0x101;
+        h.mtvec = BASE + 0x141;
         h.mstatus_mie = true;
         h.mie = 1 << 7;
         h.irq_lines = line::TIMER;
         assert_eq!(h.take_interrupt(), Some(cause::M_TIMER));
-        assert_eq!(h.pc, BASE + 0x100 + 4 * 7);
+        assert_eq!(h.pc, BASE + 0x140 + 4 * 7);
         assert!(!h.mstatus_mie && h.mstatus_mpie);
         assert_eq!(h.take_interrupt(), None, "MIE is off inside the handler");
     }

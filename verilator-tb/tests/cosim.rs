@@ -118,8 +118,14 @@ fn radio_uart_talks_to_a_byte_peer() {
         b"radio!",
         "{echoed:?}"
     );
+    // line-paced echo: the polling loop (5 instructions) sees each byte within one pass, and
+    // the core's counter-carry cycles shift a pass by a cycle now and then
     for w in echoed.windows(2) {
-        assert_eq!(w[1].0 - w[0].0, CHAR_CYCLES, "line-paced echo");
+        let gap = w[1].0 - w[0].0;
+        assert!(
+            gap.abs_diff(CHAR_CYCLES) <= 8,
+            "line-paced echo: {gap} cycles"
+        );
     }
     // the first byte is in the receiver at 100 us (a peer's times are when a byte is complete
     // on the line) and takes one character time to go back out

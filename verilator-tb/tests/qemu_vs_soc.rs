@@ -2,28 +2,59 @@
 //! `VTB_FIRMWARE`) sends the same bytes on the LBC link for the same scripted session.
 //!
 //! Session: a freshly powered, already booted emulated LBC (car 3, factory EEPROM, no boot
-//! delay) on the LBC UART; nothing on the radio. The program brings the LBC up on its own. The
-//! log is every byte the UBC sends on the LBC link from reset until 500 ms of the program's
-//! time after its `lbc up` log line, compared as a sequence: timing (when bytes leave, how far
-//! apart) is excluded, because QEMU runs in wall-clock time and the SoC in simulated time. For
-//! the same reason a retransmission (the same command again after the 50 ms reply timeout,
-//! when the QEMU side was descheduled) does not count: if the bytes differ, the decoded
-//! commands are compared with consecutive repeats collapsed.
-//! On QEMU the emulator runs in wall-clock time in this thread; on the SoC in lockstep.
-//! Both boards run the radio on a UART, so nothing is left out of the comparison.
+//! delay) on the LBC UART and a radio-mac ground station (testbed key) on the radio UART. The
+//! program brings the LBC up on its own while the ground station stays silent (what the car
+//! sends on the radio meanwhile is dropped). 500 ms of the program's time after its `lbc up`
+//! log line the ground station sends the console request `lbc` MOVE_XY 320 480 and waits for
+//! its answer (the LBC's echo), lets the car drive for 200 ms, sends `lbc` STOP and waits for
+//! its echo; the session ends 300 ms after that answer. The MOVE_XY request is the first
+//! frame the car hears from the ground station (the ground station queues its first heartbeat
+//! behind it), so the LED change the program makes on first hearing a ground station
+//! (WRIT_LED) follows the MOVE_XY on both boards. While it streams with a ground station heard
+//! the program sends nothing periodic on the LBC link, so the log has no timing-dependent
+//! tail and is compared whole.
+//!
+//! The log is every byte the UBC sends on the LBC link from reset to the end of the session,
+//! compared as a sequence: timing (when bytes leave, how far apart) is excluded, because QEMU
+//! runs in wall-clock time and the SoC in simulated time. For the same reason a
+//! retransmission (the same command again after the 50 ms reply timeout, when the QEMU side
+//! was descheduled) does not count: if the bytes differ, the decoded commands are compared
+//! with consecutive repeats collapsed. Both logs must hold the MOVE_XY frame, then the STOP.
+//! On QEMU the LBC emulator and the ground station run in wall-clock time in this thread; on
+//! the SoC in lockstep with its clock.
 //!
 //! Runs when both images are given (`cargo xtask test` sets both) and QEMU tests are not
 //! skipped (`UBC_SKIP_QEMU=1`).
 use lbc_emu::{Lbc, LbcConfig};
-use lbc_link::{Command, Deframer};
+use lbc_link::{Command, Deframer, Position, Reply as LbcReply};
 use qemu_harness::{Error, Level, LineDecoder, LogFormat, Qemu, UartAttach};
+use radio_mac::{Address, CarId, Event as RadioEvent, GroundConfig, GroundStation, Key};
+use radio_mac::{Incoming, RequestHandle};
+use std::cell::RefCell;
+use std::rc::Rc;
 use std::time::{Duration, Instant};
-use verilator_tb::cosim::LbcCosim;
+use ubc_app::program::console::{LbcOutcome, Reply, Request, Tag};
+use ubc_app::program::DEFAULT_KEY;
+use verilator_tb::cosim::{LbcCosim, SerialPeer};
 use verilator_tb::soc::{Event, Soc, Uart, CLOCK_HZ};
 
 const CAR: u8 = 3;
+/// From the `lbc up` line to the MOVE_XY request.
 const AFTER_UP_US: u64 = 500_000;
+/// From the MOVE_XY answer to the STOP request.
+const DRIVE_US: u64 = 200_000;
+/// From the STOP answer to the end of the session.
+const TAIL_US: u64 = 300_000;
+/// Bound on QEMU's start and bring-up (wall clock).
 const MAX_BRINGUP: Duration = Duration::from_secs(20);
+/// Bound on the whole session on QEMU (wall clock).
+const MAX_QEMU_SESSION: Duration = Duration::from_secs(35);
+/// Bound on the whole session on the SoC (simulated time).
+const MAX_SOC_SESSION_US: u64 = 6_000_000;
+
+fn target() -> Position {
+    Position::new(320, 480).expect("in range")
+}
 
 fn lbc() -> Lbc {
     let mut cfg = LbcConfig::default();
@@ -31,21 +62,191 @@ fn lbc() -> Lbc {
     Lbc::with_memory_eeprom(cfg, CAR)
 }
 
+/// The ground station: silent (deaf too) until its first request, then a radio-mac ground
+/// station on the car's radio UART that acknowledges the car's notices.
+struct Ground {
+    gs: GroundStation,
+    on: bool,
+    /// Console replies by request; `None` when the radio gave up.
+    answers: Vec<(RequestHandle, Option<Reply>)>,
+}
+
+impl Ground {
+    fn new() -> Self {
+        Self {
+            gs: GroundStation::new(GroundConfig::new(Key::new(DEFAULT_KEY), 1)),
+            on: false,
+            answers: Vec::new(),
+        }
+    }
+
+    fn receive(&mut self, now_us: u64, bytes: &[u8]) {
+        if self.on {
+            self.gs.push_rx(now_us, bytes);
+        }
+    }
+
+    fn advance(&mut self, now_us: u64, out: &mut Vec<u8>) {
+        if !self.on {
+            return;
+        }
+        self.gs.poll(now_us);
+        while let Some(ev) = self.gs.next_event() {
+            match ev {
+                RadioEvent::Request(Incoming { id, tag, .. }) if tag == Tag::Notice as u8 => {
+                    let _ = self.gs.reply(id, tag, &[]);
+                }
+                RadioEvent::Reply {
+                    handle,
+                    tag,
+                    payload,
+                    ..
+                } => {
+                    let reply = Reply::decode(tag, &payload)
+                        .unwrap_or_else(|e| panic!("console reply does not decode: {e:?}"));
+                    self.answers.push((handle, Some(reply)));
+                }
+                RadioEvent::Failed { handle, .. } => self.answers.push((handle, None)),
+                _ => {}
+            }
+        }
+        let mut buf = [0u8; 256];
+        loop {
+            let n = self.gs.transmit(&mut buf);
+            if n == 0 {
+                break;
+            }
+            out.extend_from_slice(&buf[..n]);
+        }
+    }
+
+    fn request(&mut self, now_us: u64, req: &Request) -> RequestHandle {
+        self.on = true;
+        let mut buf = [0u8; 64];
+        let n = req.encode(&mut buf).expect("encode");
+        let dst = Address::Car(CarId::new(CAR).expect("car id"));
+        self.gs
+            .command(now_us, dst, req.tag() as u8, &buf[..n])
+            .expect("ground command")
+    }
+
+    /// The answer to `h` once it came; panics if the radio gave up.
+    fn answer(&mut self, h: RequestHandle) -> Option<Reply> {
+        let i = self.answers.iter().position(|(x, _)| *x == h)?;
+        match self.answers.swap_remove(i).1 {
+            Some(r) => Some(r),
+            None => panic!("the radio gave up on a console request"),
+        }
+    }
+}
+
+/// The SoC's radio peer: the ground station, shared with the test's script.
+struct GroundPeer(Rc<RefCell<Ground>>);
+
+impl SerialPeer for GroundPeer {
+    fn receive(&mut self, t_us: u64, byte: u8) {
+        self.0.borrow_mut().receive(t_us, &[byte]);
+    }
+
+    fn advance(&mut self, now_us: u64, out: &mut Vec<(u64, u8)>) {
+        let mut bytes = Vec::new();
+        self.0.borrow_mut().advance(now_us, &mut bytes);
+        out.extend(bytes.into_iter().map(|b| (now_us, b)));
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Step {
+    /// Waiting for the `lbc up` line.
+    BringUp,
+    Settle {
+        until: u64,
+    },
+    Move(RequestHandle),
+    Drive {
+        until: u64,
+    },
+    Stop(RequestHandle),
+    Tail {
+        until: u64,
+    },
+    Done,
+}
+
+/// The scripted session on a board's clock (microseconds).
+struct Session {
+    step: Step,
+}
+
+impl Session {
+    fn new() -> Self {
+        Self {
+            step: Step::BringUp,
+        }
+    }
+
+    /// Advances the script at `now`; `up` once the program logged `lbc up`. True when done.
+    fn advance(&mut self, now: u64, up: bool, ground: &mut Ground) -> bool {
+        self.step = match self.step {
+            Step::BringUp if up => Step::Settle {
+                until: now + AFTER_UP_US,
+            },
+            Step::Settle { until } if now >= until => {
+                Step::Move(ground.request(now, &Request::Lbc(Command::MoveXy(target()))))
+            }
+            Step::Move(h) => match ground.answer(h) {
+                Some(r) => {
+                    expect_echo(&r, Command::MoveXy(target()));
+                    Step::Drive {
+                        until: now + DRIVE_US,
+                    }
+                }
+                None => Step::Move(h),
+            },
+            Step::Drive { until } if now >= until => {
+                Step::Stop(ground.request(now, &Request::Lbc(Command::Stop)))
+            }
+            Step::Stop(h) => match ground.answer(h) {
+                Some(r) => {
+                    expect_echo(&r, Command::Stop);
+                    Step::Tail {
+                        until: now + TAIL_US,
+                    }
+                }
+                None => Step::Stop(h),
+            },
+            Step::Tail { until } if now >= until => Step::Done,
+            s => s,
+        };
+        matches!(self.step, Step::Done)
+    }
+}
+
+fn expect_echo(reply: &Reply, cmd: Command) {
+    assert!(
+        matches!(reply, Reply::Lbc(LbcOutcome::Answer(LbcReply::Echo(c))) if *c == cmd),
+        "{cmd:?} answered {reply:?}"
+    );
+}
+
 fn soc_log(elf_path: &std::path::Path) -> Vec<u8> {
     let elf = std::fs::read(elf_path).expect("VTB_FIRMWARE is readable");
     let format = LogFormat::from_elf_bytes(&elf, elf_path).expect("defmt table");
     let mut soc = Soc::new();
     soc.load_elf(&elf).expect("a softcore image");
-    let mut cosim = LbcCosim::new(soc, lbc());
+    let ground = Rc::new(RefCell::new(Ground::new()));
+    let mut cosim = LbcCosim::new(soc, lbc()).with_radio(Box::new(GroundPeer(Rc::clone(&ground))));
     let mut decoder = LineDecoder::new(&format);
     let mut lines = Vec::new();
     let mut sent = Vec::new();
-    let mut up_at = None;
-    let step = u64::from(CLOCK_HZ) / 100;
-    while up_at.is_none_or(|t| cosim.now_us() < t + AFTER_UP_US) {
+    let mut up = false;
+    let mut session = Session::new();
+    let step = u64::from(CLOCK_HZ) / 1000;
+    while !session.advance(cosim.now_us(), up, &mut ground.borrow_mut()) {
         assert!(
-            cosim.now_us() < 3_000_000,
-            "no bring-up on the SoC: {lines:#?}"
+            cosim.now_us() < MAX_SOC_SESSION_US,
+            "the session did not end on the SoC (at {:?}): {lines:#?}",
+            session.step
         );
         for e in cosim.run(step) {
             match e.value {
@@ -54,12 +255,11 @@ fn soc_log(elf_path: &std::path::Path) -> Vec<u8> {
                     byte,
                 } => sent.push(byte),
                 Event::Console(b) => decoder.push(&[b], Instant::now(), &mut lines),
-                _ => {}
+                Event::Exit(x) => panic!("firmware exited: {x:?}\n{lines:#?}"),
+                Event::Tx { .. } => {}
             }
         }
-        if up_at.is_none() && lines.iter().any(|l| l.is(Level::Info, "lbc up")) {
-            up_at = Some(cosim.now_us());
-        }
+        up = up || lines.iter().any(|l| l.is(Level::Info, "lbc up"));
     }
     sent
 }
@@ -67,20 +267,29 @@ fn soc_log(elf_path: &std::path::Path) -> Vec<u8> {
 fn qemu_log(elf_path: &std::path::Path) -> Vec<u8> {
     let mut qemu = Qemu::builder(elf_path)
         .lbc(UartAttach::Harness)
-        .radio(UartAttach::Null)
+        .radio(UartAttach::Harness)
         .spawn()
         .unwrap_or_else(|e| panic!("cannot start QEMU: {e}"));
     let mut uart = qemu.take_lbc().expect("harness LBC uart");
+    let mut radio = qemu.take_radio().expect("harness radio uart");
     let mut lbc = lbc();
+    let mut ground = Ground::new();
+    let mut session = Session::new();
     let start = Instant::now();
     let mut sent = Vec::new();
-    let mut up_at = None;
+    let mut up = false;
     let mut buf = [0u8; 1024];
     let mut out = Vec::new();
-    while up_at.is_none_or(|t: Instant| t.elapsed() < Duration::from_micros(AFTER_UP_US)) {
+    loop {
+        let now = start.elapsed().as_micros() as u64;
+        if session.advance(now, up, &mut ground) {
+            break;
+        }
+        let limit = if up { MAX_QEMU_SESSION } else { MAX_BRINGUP };
         assert!(
-            start.elapsed() < MAX_BRINGUP,
-            "no bring-up on QEMU: {:#?}",
+            start.elapsed() < limit,
+            "the session did not end on QEMU (at {:?}): {:#?}",
+            session.step,
             qemu.log().lines()
         );
         let n = match uart.read_some_timeout(&mut buf, Duration::from_millis(1)) {
@@ -95,34 +304,68 @@ fn qemu_log(elf_path: &std::path::Path) -> Vec<u8> {
         out.clear();
         lbc.drain_tx(now, &mut out);
         uart.write_all(&out).expect("LBC uart write");
-        if up_at.is_none()
-            && qemu
+
+        let heard = radio.drain().unwrap_or_else(|e| panic!("radio uart: {e}"));
+        ground.receive(now, &heard);
+        out.clear();
+        ground.advance(now, &mut out);
+        radio.write_all(&out).expect("radio uart write");
+
+        up = up
+            || qemu
                 .log()
                 .lines()
                 .iter()
-                .any(|l| l.is(Level::Info, "lbc up"))
-        {
-            up_at = Some(Instant::now());
-        }
+                .any(|l| l.is(Level::Info, "lbc up"));
     }
     let _ = qemu.kill();
     sent
 }
 
-fn frames(bytes: &[u8]) -> Vec<String> {
+/// Every complete frame in `bytes`, decoded as a command (or why it is not one).
+fn decoded(bytes: &[u8]) -> Vec<Result<Command, String>> {
     let mut d = Deframer::new();
     let mut out = Vec::new();
     for &b in bytes {
         match d.push(b) {
             None => {}
-            Some(Ok(m)) => out.push(match Command::parse(&m) {
-                Ok(msg) => format!("{msg:?}"),
-                Err(e) => format!("unparsed {e:?}"),
-            }),
-            Some(Err(e)) => out.push(format!("bad frame {e:?}")),
+            Some(Ok(m)) => out.push(Command::parse(&m).map_err(|e| format!("unparsed {e:?}"))),
+            Some(Err(e)) => out.push(Err(format!("bad frame {e:?}"))),
         }
     }
     out
+}
+
+fn frames(bytes: &[u8]) -> Vec<String> {
+    decoded(bytes)
+        .into_iter()
+        .map(|f| match f {
+            Ok(c) => format!("{c:?}"),
+            Err(e) => e,
+        })
+        .collect()
+}
+
+/// The log holds the MOVE_XY frame byte for byte and, after it, a STOP.
+fn assert_session_commands(board: &str, log: &[u8]) {
+    let mut frame = [0u8; 16];
+    let n = Command::MoveXy(target()).emit(&mut frame).expect("fits");
+    assert!(
+        log.windows(n).any(|w| w == &frame[..n]),
+        "{board}: no MOVE_XY frame {:02x?} in the LBC log {:#?}",
+        &frame[..n],
+        frames(log)
+    );
+    let cmds = decoded(log);
+    let moved = cmds
+        .iter()
+        .position(|c| *c == Ok(Command::MoveXy(target())))
+        .unwrap_or_else(|| panic!("{board}: no MOVE_XY decoded: {:#?}", frames(log)));
+    assert!(
+        cmds[moved..].contains(&Ok(Command::Stop)),
+        "{board}: no STOP after the MOVE_XY: {:#?}",
+        frames(log)
+    );
 }
 
 #[test]
@@ -139,7 +382,8 @@ fn qemu_and_soc_send_the_same_lbc_bytes() {
     }
     let on_soc = soc_log(std::path::Path::new(&soc_elf));
     let on_qemu = qemu_log(std::path::Path::new(&qemu_elf));
-    assert!(!on_soc.is_empty());
+    assert_session_commands("SoC", &on_soc);
+    assert_session_commands("QEMU", &on_qemu);
     if on_qemu != on_soc {
         // A retransmission (the same command again after a 50 ms reply timeout) is timing:
         // QEMU shares the machine with other work. Anything else is a real difference.
