@@ -44,7 +44,8 @@ module rv_core #(
     input  wire [31:0] imem_rdata,
 
     // Data bus: word-aligned address, read data returned in the same cycle. Reads with side
-    // effects and writes take effect at the clock edge when `dmem_re`/`dmem_wstrb` are set.
+    // effects and writes take effect at the clock edge when `dmem_re`/`dmem_wstrb` are set
+    // (and `rst` is low: devices ignore the strobes during reset).
     output wire [31:0] dmem_addr,
     output wire        dmem_re,
     output wire [3:0]  dmem_rmask,
@@ -120,7 +121,11 @@ module rv_core #(
     reg [5:0]  md_cnt;
     reg [31:0] md_quo, md_rem, md_div;
 
-    wire ex = !rst && seq == S_EXEC;
+    // The reset input enters only the register updates and the fetch address, so the
+    // datapath's logic does not depend on a top-level input (which would make a simulator
+    // re-evaluate it on every input change). The bus strobes are meaningless during reset:
+    // the SoC ignores them then.
+    wire ex = seq == S_EXEC;
 
     // ---------------------------------------------------------------- decode
     wire [31:0] insn   = ir;
@@ -238,9 +243,7 @@ module rv_core #(
     wire [63:0] prod_u   = {32'd0, abs_a} * {32'd0, mul_b};
     wire        prod_neg = neg_a ^ neg_b;
     wire        lo_zero  = prod_u[31:0] == 32'd0;
-    wire [31:0] hi_word  = (prod_u[63:32] ^ {32{prod_neg}}) + {31'd0, prod_neg & lo_zero};
     wire        use_lo   = is_shift ? !f3[2] || sh_zero : f3[1:0] == 2'd0;
-    wire [31:0] mul_out  = use_lo ? prod_u[31:0] : hi_word;
 
     wire [32:0] md_sh  = {md_rem, md_quo[31]};
     wire [32:0] md_dif = md_sh - {1'b0, md_div};
@@ -249,7 +252,11 @@ module rv_core #(
     // Dividing by zero needs no special case: the loop yields an all-ones quotient and the
     // dividend's magnitude as remainder; only the quotient's sign fix-up is suppressed.
     wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
-    wire [31:0] div_out = (md_res ^ {32{md_neg}}) + {31'd0, md_neg};
+    // One conditional negation serves the signed high product and the divider's result.
+    wire [31:0] ng_in  = is_div ? md_res : prod_u[63:32];
+    wire        ng     = is_div ? md_neg : prod_neg;
+    wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, is_div ? md_neg : prod_neg & lo_zero};
+    wire [31:0] mul_out = use_lo && !is_div ? prod_u[31:0] : ng_out;   // also DIV/REM
 
     // ---------------------------------------------------------------- memory access
     wire [31:0] ls_addr = sum;
@@ -368,13 +375,13 @@ module rv_core #(
 
     wire stall     = (is_div && !md_done) || (is_wfi && irq_pend == 3'd0);
     // CNT cycles taken while a WFI waits count as sleep too: the program is not running
-    assign sleeping = (ex && is_wfi && irq_pend == 3'd0) || (!rst && seq == S_CNT && cnt_wfi);
+    assign sleeping = !rst && ((ex && is_wfi && irq_pend == 3'd0) || (seq == S_CNT && cnt_wfi));
     wire trap_in   = ex && (irq_take || exc);
     wire csr_ex    = ex && !irq_take && !exc && is_csr;
     wire csr_rf_w  = csr_ex && in_rf && csr_writes;     // finishes in EX2
     wire amo_a     = ex && !irq_take && !exc && is_amo;
     wire two_ph    = csr_rf_w || amo_a;
-    wire in_ex2    = !rst && seq == S_EX2;
+    wire in_ex2    = seq == S_EX2;
     wire commit_ex = ex && !irq_take && !exc && !stall && !is_amo;
     wire retire    = commit_ex || (in_ex2 && is_amo);
 
@@ -386,10 +393,10 @@ module rv_core #(
     // value was all ones, that increment still carries into the high word); a write of the
     // high word replaces the carry of this instruction's increment.
     wire ins_inc   = retire && !(is_csr && a_ins_lo);
-    wire cyc_wrap  = !rst && !wr_cyc_lo && cyc_lo == {CNT_P{1'b1}};
+    wire cyc_wrap  = !wr_cyc_lo && cyc_lo == {CNT_P{1'b1}};
     wire ins_wrap  = ins_inc && ins_lo == {CNT_P{1'b1}};
     wire cnt_carry = sum33[32];
-    wire in_cnt    = !rst && seq == S_CNT;
+    wire in_cnt    = seq == S_CNT;
     wire cyc_pl_n  = (cyc_pl || cyc_wrap) && !(in_cnt && !cnt_ins && !cnt_hi);
     wire cyc_ph_n  = (cyc_ph || (in_cnt && !cnt_ins && !cnt_hi && cnt_carry)) &&
                      !(in_cnt && !cnt_ins && cnt_hi);
@@ -400,11 +407,11 @@ module rv_core #(
 
     // ---------------------------------------------------------------- sequencing
     // A boundary: the next cycle may start an instruction (a WFI that waits is one too).
-    wire boundary = !rst && !(ex && (trap_in || two_ph || (stall && !is_wfi)));
+    wire boundary = !(ex && (trap_in || two_ph || (stall && !is_wfi)));
     wire to_cnt   = boundary && (cyc_pl_n || cyc_ph_n || ins_pl_n || ins_ph_n);
     wire n_ins    = !(cyc_pl_n || cyc_ph_n);
     wire n_hi     = n_ins ? !ins_pl_n : !cyc_pl_n;
-    wire [1:0] seq_n = rst ? S_EXEC : to_cnt ? S_CNT : trap_in ? S_TRAP :
+    wire [1:0] seq_n = to_cnt ? S_CNT : trap_in ? S_TRAP :
                        two_ph ? S_EX2 : S_EXEC;
 
     wire hold = seq == S_CNT || trap_in || two_ph || (ex && stall);
@@ -437,7 +444,7 @@ module rv_core #(
     wire [31:0] wb_val =
         ({32{t_sum}} & {sum[31:1], sum[0] & !(trap_in && is_jalr)}) |
         ({32{t_link}} & pc_plus4) | ({32{t_load}} & load_out) |
-        ({32{t_logic}} & logic_out) | ({32{t_mul}} & mul_out) | ({32{t_div}} & div_out) |
+        ({32{t_logic}} & logic_out) | ({32{t_mul | t_div}} & mul_out) |
         ({32{t_insn}} & insn) | ({32{t_csrr}} & csr_rdata) | ({32{t_new}} & csr_new) |
         {31'd0, t_ex && is_sc && !sc_ok};
     wire writes_rd = is_lui | is_auipc | is_jal | is_jalr | is_load | is_opimm | is_op |
@@ -449,7 +456,7 @@ module rv_core #(
                                                 c_34x ? csr_addr[1:0] : 2'b10} :
                          {1'b0, rd_eff};
     wire wb_en = (commit_ex && rd_eff != 5'd0) || (in_ex2 && is_amo && rd_eff != 5'd0) ||
-                 t_new || trap_in || (!rst && seq[1]);
+                 t_new || trap_in || seq[1];
 
     // ---------------------------------------------------------------- fetch stage
     // Port A reads rs1, or the counter word of a coming CNT cycle. Port B reads rs2, the CSR
@@ -469,10 +476,10 @@ module rv_core #(
         ir <= imem_rdata;
         rf_a <= regs[port_a];
         rf_b <= regs[port_b];
-        byp_a <= (wb_en && wb_addr == port_a) || amo_a;
-        byp_b <= wb_en && wb_addr == port_b;
+        byp_a <= !rst && ((wb_en && wb_addr == port_a) || amo_a);
+        byp_b <= !rst && wb_en && wb_addr == port_b;
         byp_val <= wb_val;
-        if (wb_en) regs[wb_addr] <= wb_val;
+        if (wb_en && !rst) regs[wb_addr] <= wb_val;
     end
 
     // ---------------------------------------------------------------- state update

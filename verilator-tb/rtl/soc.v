@@ -60,12 +60,17 @@ module soc (
     wire [3:0]  dmem_rmask, dmem_wstrb;
     wire        msip, mtip, meip;
 
+    // The test bench's line is registered (it acts one cycle later), so no core logic depends
+    // on a top-level input.
+    reg tb_meip_q;
+    always @(posedge clk) tb_meip_q <= tb_meip;
+
     rv_core core (
         .clk(clk), .rst(rst),
         .imem_addr(imem_addr), .imem_rdata(imem_rdata),
         .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
         .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
-        .irq_software(msip), .irq_timer(mtip), .irq_external(meip | tb_meip),
+        .irq_software(msip), .irq_timer(mtip), .irq_external(meip | tb_meip_q),
         .sleeping(core_sleeping),
         .rvfi_valid(rvfi_valid), .rvfi_order(rvfi_order), .rvfi_insn(rvfi_insn),
         .rvfi_trap(rvfi_trap), .rvfi_intr(rvfi_intr),
@@ -97,7 +102,7 @@ module soc (
     wire [31:0] ram_rdata = ram[dmem_addr[19:2]];
     always @(posedge clk) begin
         if (bd_we) ram[bd_addr] <= bd_wdata;
-        else if (sel_ram) begin
+        else if (sel_ram && !rst) begin
             if (dmem_wstrb[0]) ram[dmem_addr[19:2]][7:0] <= dmem_wdata[7:0];
             if (dmem_wstrb[1]) ram[dmem_addr[19:2]][15:8] <= dmem_wdata[15:8];
             if (dmem_wstrb[2]) ram[dmem_addr[19:2]][23:16] <= dmem_wdata[23:16];
@@ -113,7 +118,7 @@ module soc (
 
     wire [31:0] fmem_rdata = fmem[dmem_addr[20:2]];
     always @(posedge clk) begin
-        if (sel_fmem) begin
+        if (sel_fmem && !rst) begin
             if (dmem_wstrb[0]) fmem[dmem_addr[20:2]][7:0] <= dmem_wdata[7:0];
             if (dmem_wstrb[1]) fmem[dmem_addr[20:2]][15:8] <= dmem_wdata[15:8];
             if (dmem_wstrb[2]) fmem[dmem_addr[20:2]][23:16] <= dmem_wdata[23:16];
