@@ -5,16 +5,17 @@
 //! harness writes into the frame-grabber window. Every retired instruction is checked against
 //! the golden model (lockstep) on the way. Without `VTB_FIRMWARE` the tests say so and do
 //! nothing (the image is built by `cargo xtask fw --board softcore`).
+mod ground;
+
+use ground::{Ground, GroundPeer};
 use lbc_emu::{Lbc, LbcConfig};
 use lbc_link::{Command, Position, Reply as LbcReply};
 use qemu_harness::{Level, LineDecoder, LogFormat, LogLine};
-use radio_mac::{Address, CarId, Event as RadioEvent, GroundConfig, GroundStation, Key};
 use std::cell::RefCell;
 use std::rc::Rc;
 use std::time::Instant;
-use ubc_app::program::console::{LbcOutcome, Reply, Request, Status, Tag};
-use ubc_app::program::DEFAULT_KEY;
-use verilator_tb::cosim::{LbcCosim, SerialPeer};
+use ubc_app::program::console::{LbcOutcome, Reply, Request, Status};
+use verilator_tb::cosim::LbcCosim;
 use verilator_tb::lockstep::Checker;
 use verilator_tb::soc::{Event, Soc, Uart, CLOCK_HZ};
 
@@ -22,47 +23,12 @@ const CAR: u8 = 3;
 /// 10 ms of SoC clock.
 const TEN_MS: u64 = CLOCK_HZ as u64 / 100;
 
-/// A ground station on the radio UART, shared with the test through an `Rc`.
-struct GroundPeer {
-    gs: Rc<RefCell<GroundStation>>,
-    events: Rc<RefCell<Vec<RadioEvent>>>,
-}
-
-impl SerialPeer for GroundPeer {
-    fn receive(&mut self, t_us: u64, byte: u8) {
-        self.gs.borrow_mut().push_rx(t_us, &[byte]);
-    }
-
-    fn advance(&mut self, now_us: u64, out: &mut Vec<(u64, u8)>) {
-        let mut gs = self.gs.borrow_mut();
-        gs.poll(now_us);
-        while let Some(ev) = gs.next_event() {
-            if let RadioEvent::Request(inc) = &ev {
-                if inc.tag == Tag::Notice as u8 {
-                    let _ = gs.reply(inc.id, inc.tag, &[]);
-                    continue;
-                }
-            }
-            self.events.borrow_mut().push(ev);
-        }
-        let mut buf = [0u8; 256];
-        loop {
-            let n = gs.transmit(&mut buf);
-            if n == 0 {
-                break;
-            }
-            out.extend(buf[..n].iter().map(|&b| (now_us, b)));
-        }
-    }
-}
-
 struct Rig {
     cosim: LbcCosim,
     format: LogFormat,
     console: Vec<u8>,
     lbc_bytes: Vec<u8>,
-    gs: Rc<RefCell<GroundStation>>,
-    radio_events: Rc<RefCell<Vec<RadioEvent>>>,
+    ground: Rc<RefCell<Ground>>,
 }
 
 impl Rig {
@@ -76,15 +42,8 @@ impl Rig {
         let format = LogFormat::from_elf_bytes(&elf, &path).expect("defmt table");
         let mut soc = Soc::new();
         soc.load_elf(&elf).expect("a softcore image");
-        let gs = Rc::new(RefCell::new(GroundStation::new(GroundConfig::new(
-            Key::new(DEFAULT_KEY),
-            1,
-        ))));
-        let radio_events = Rc::new(RefCell::new(Vec::new()));
-        let peer = GroundPeer {
-            gs: Rc::clone(&gs),
-            events: Rc::clone(&radio_events),
-        };
+        let ground = Rc::new(RefCell::new(Ground::new(CAR, false)));
+        let peer = GroundPeer(Rc::clone(&ground));
         let mut checker = Checker::new();
         checker.load_elf(&elf).expect("a softcore image");
         let cosim = LbcCosim::new(soc, Lbc::with_memory_eeprom(LbcConfig::default(), CAR))
@@ -95,8 +54,7 @@ impl Rig {
             format,
             console: Vec::new(),
             lbc_bytes: Vec::new(),
-            gs,
-            radio_events,
+            ground,
         })
     }
 
@@ -159,34 +117,11 @@ impl Rig {
 
     /// Sends a console request from the ground station and runs until the reply.
     fn request(&mut self, req: &Request) -> Reply {
-        let mut buf = [0u8; 64];
-        let n = req.encode(&mut buf).expect("encode");
-        let tag = req.tag() as u8;
-        let dst = Address::Car(CarId::new(CAR).expect("car id"));
         let now = self.cosim.now_us();
-        let h = self
-            .gs
-            .borrow_mut()
-            .command(now, dst, tag, &buf[..n])
-            .expect("ground command");
+        let h = self.ground.borrow_mut().request(now, req);
         let mut reply = None;
         self.run_until(3_000, |r| {
-            for ev in r.radio_events.borrow_mut().drain(..) {
-                match ev {
-                    RadioEvent::Reply {
-                        handle,
-                        tag: t,
-                        payload,
-                        ..
-                    } if handle == h => {
-                        reply = Some(Reply::decode(t, &payload).expect("reply decodes"))
-                    }
-                    RadioEvent::Failed { handle, .. } if handle == h => {
-                        panic!("request {tag:#x} failed on the radio")
-                    }
-                    _ => {}
-                }
-            }
+            reply = r.ground.borrow_mut().answer(h);
             reply.is_some()
         });
         reply.unwrap_or_else(|| panic!("no reply to {req:?}: {:#?}", self.lines()))

@@ -25,17 +25,18 @@
 //!
 //! Runs when both images are given (`cargo xtask test` sets both) and QEMU tests are not
 //! skipped (`UBC_SKIP_QEMU=1`).
+mod ground;
+
+use ground::{Ground, GroundPeer};
 use lbc_emu::{Lbc, LbcConfig};
 use lbc_link::{Command, Deframer, Position, Reply as LbcReply};
 use qemu_harness::{Error, Level, LineDecoder, LogFormat, Qemu, UartAttach};
-use radio_mac::{Address, CarId, Event as RadioEvent, GroundConfig, GroundStation, Key};
-use radio_mac::{Incoming, RequestHandle};
+use radio_mac::RequestHandle;
 use std::cell::RefCell;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
-use ubc_app::program::console::{LbcOutcome, Reply, Request, Tag};
-use ubc_app::program::DEFAULT_KEY;
-use verilator_tb::cosim::{LbcCosim, SerialPeer};
+use ubc_app::program::console::{LbcOutcome, Reply, Request};
+use verilator_tb::cosim::LbcCosim;
 use verilator_tb::soc::{Event, Soc, Uart, CLOCK_HZ};
 
 const CAR: u8 = 3;
@@ -60,99 +61,6 @@ fn lbc() -> Lbc {
     let mut cfg = LbcConfig::default();
     cfg.boot_time_us = 0;
     Lbc::with_memory_eeprom(cfg, CAR)
-}
-
-/// The ground station: silent (deaf too) until its first request, then a radio-mac ground
-/// station on the car's radio UART that acknowledges the car's notices.
-struct Ground {
-    gs: GroundStation,
-    on: bool,
-    /// Console replies by request; `None` when the radio gave up.
-    answers: Vec<(RequestHandle, Option<Reply>)>,
-}
-
-impl Ground {
-    fn new() -> Self {
-        Self {
-            gs: GroundStation::new(GroundConfig::new(Key::new(DEFAULT_KEY), 1)),
-            on: false,
-            answers: Vec::new(),
-        }
-    }
-
-    fn receive(&mut self, now_us: u64, bytes: &[u8]) {
-        if self.on {
-            self.gs.push_rx(now_us, bytes);
-        }
-    }
-
-    fn advance(&mut self, now_us: u64, out: &mut Vec<u8>) {
-        if !self.on {
-            return;
-        }
-        self.gs.poll(now_us);
-        while let Some(ev) = self.gs.next_event() {
-            match ev {
-                RadioEvent::Request(Incoming { id, tag, .. }) if tag == Tag::Notice as u8 => {
-                    let _ = self.gs.reply(id, tag, &[]);
-                }
-                RadioEvent::Reply {
-                    handle,
-                    tag,
-                    payload,
-                    ..
-                } => {
-                    let reply = Reply::decode(tag, &payload)
-                        .unwrap_or_else(|e| panic!("console reply does not decode: {e:?}"));
-                    self.answers.push((handle, Some(reply)));
-                }
-                RadioEvent::Failed { handle, .. } => self.answers.push((handle, None)),
-                _ => {}
-            }
-        }
-        let mut buf = [0u8; 256];
-        loop {
-            let n = self.gs.transmit(&mut buf);
-            if n == 0 {
-                break;
-            }
-            out.extend_from_slice(&buf[..n]);
-        }
-    }
-
-    fn request(&mut self, now_us: u64, req: &Request) -> RequestHandle {
-        self.on = true;
-        let mut buf = [0u8; 64];
-        let n = req.encode(&mut buf).expect("encode");
-        let dst = Address::Car(CarId::new(CAR).expect("car id"));
-        self.gs
-            .command(now_us, dst, req.tag() as u8, &buf[..n])
-            .expect("ground command")
-    }
-
-    /// The answer to `h` once it came; panics if the radio gave up.
-    fn answer(&mut self, h: RequestHandle) -> Option<Reply> {
-        let i = self.answers.iter().position(|(x, _)| *x == h)?;
-        match self.answers.swap_remove(i).1 {
-            Some(r) => Some(r),
-            None => panic!("the radio gave up on a console request"),
-        }
-    }
-}
-
-/// The SoC's radio peer: the ground station, shared with the test's script.
-struct GroundPeer(Rc<RefCell<Ground>>);
-
-impl SerialPeer for GroundPeer {
-    fn receive(&mut self, t_us: u64, byte: u8) {
-        self.0.borrow_mut().receive(t_us, &[byte]);
-    }
-
-    fn advance(&mut self, now_us: u64, out: &mut Vec<(u64, u8)>) {
-        let mut bytes = Vec::new();
-        self.0.borrow_mut().advance(now_us, &mut bytes);
-        out.extend(bytes.into_iter().map(|b| (now_us, b)));
-    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -234,7 +142,7 @@ fn soc_log(elf_path: &std::path::Path) -> Vec<u8> {
     let format = LogFormat::from_elf_bytes(&elf, elf_path).expect("defmt table");
     let mut soc = Soc::new();
     soc.load_elf(&elf).expect("a softcore image");
-    let ground = Rc::new(RefCell::new(Ground::new()));
+    let ground = Rc::new(RefCell::new(Ground::new(CAR, true)));
     let mut cosim = LbcCosim::new(soc, lbc()).with_radio(Box::new(GroundPeer(Rc::clone(&ground))));
     let mut decoder = LineDecoder::new(&format);
     let mut lines = Vec::new();
@@ -273,7 +181,7 @@ fn qemu_log(elf_path: &std::path::Path) -> Vec<u8> {
     let mut uart = qemu.take_lbc().expect("harness LBC uart");
     let mut radio = qemu.take_radio().expect("harness radio uart");
     let mut lbc = lbc();
-    let mut ground = Ground::new();
+    let mut ground = Ground::new(CAR, true);
     let mut session = Session::new();
     let start = Instant::now();
     let mut sent = Vec::new();
