@@ -21,7 +21,7 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 use vision::blobs::{BlobDetector, Detections};
 use vision::colour::MARKER_CLASSES;
-use vision::frame::{FrameTicket, HeaderError, HeaderRepr, HEADER_LEN, WINDOW_LEN, WRITING};
+use vision::frame::{field, FrameTicket, HeaderError, HeaderRepr, HEADER_LEN, WINDOW_LEN, WRITING};
 use vision::{process_frame, FrameGeometry, PipelineConfig, PipelineError};
 
 /// File name of car `id`'s RAM file inside a world's run directory.
@@ -31,12 +31,6 @@ pub fn ram_file_name(id: u8) -> String {
 
 /// Default frame rate of the feed, frames per second per car.
 pub const DEFAULT_FPS: f64 = 15.0;
-
-// Byte offsets of the header fields the writer updates (layout in `vision::frame`).
-const SEQUENCE: u64 = 28;
-const READY: u64 = 32;
-const BUFFER_SEQ: [u64; 2] = [36, 40];
-const CAPTURE_US: [u64; 2] = [48, 56];
 
 /// Why a window could not be written or read.
 #[derive(Debug)]
@@ -110,9 +104,11 @@ impl RamWindow {
         &self.header
     }
 
-    fn put_u32(&self, field: u64, v: u32) -> io::Result<()> {
+    /// Writes `bytes` over the header field at `range` (one positioned write).
+    fn put(&self, range: &std::ops::Range<usize>, bytes: &[u8]) -> io::Result<()> {
+        debug_assert_eq!(range.len(), bytes.len());
         self.ram
-            .write_at(FRAME_WINDOW_OFFSET + field, &v.to_le_bytes())
+            .write_at(FRAME_WINDOW_OFFSET + range.start as u64, bytes)
     }
 
     /// Publishes `pixels` (one packed frame) as the next frame; returns its sequence.
@@ -133,20 +129,17 @@ impl RamWindow {
         // The local copy and the file agree on WRITING even if a later write fails.
         self.header.buffer_seq[index] = WRITING;
         h.buffer_seq[index] = WRITING;
-        self.put_u32(BUFFER_SEQ[index], WRITING)?;
+        self.put(&field::BUFFER_SEQ[index], &WRITING.to_le_bytes())?;
         let start = FRAME_WINDOW_OFFSET + u64::from(h.buffer_offset[index]);
         self.ram.write_at(start, pixels)?;
         let mut next = h.sequence.wrapping_add(1);
         if next == 0 || next == WRITING {
             next = 1;
         }
-        self.ram.write_at(
-            FRAME_WINDOW_OFFSET + CAPTURE_US[index],
-            &capture_us.to_le_bytes(),
-        )?;
-        self.put_u32(BUFFER_SEQ[index], next)?;
-        self.put_u32(READY, index as u32)?;
-        self.put_u32(SEQUENCE, next)?;
+        self.put(&field::CAPTURE_US[index], &capture_us.to_le_bytes())?;
+        self.put(&field::BUFFER_SEQ[index], &next.to_le_bytes())?;
+        self.put(&field::READY, &(index as u32).to_le_bytes())?;
+        self.put(&field::SEQUENCE, &next.to_le_bytes())?;
         h.capture_us[index] = capture_us;
         h.buffer_seq[index] = next;
         h.ready = index as u32;

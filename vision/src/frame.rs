@@ -29,7 +29,8 @@ pub const WRITING: u32 = u32::MAX;
 /// Size of the window the boards reserve: room for two 640x480 RGB565 frames.
 pub const WINDOW_LEN: usize = 0x0013_0000;
 
-mod field {
+/// Byte ranges of the header's fields (little-endian; the table in `docs/camera.md`).
+pub mod field {
     use core::ops::Range;
     pub const MAGIC: Range<usize> = 0..4;
     pub const VERSION: Range<usize> = 4..6;
