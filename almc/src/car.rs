@@ -14,7 +14,7 @@ use maneuvers::{ManeuverParams, Shape};
 use radio_mac::{CarId, Event};
 use serde_json::{json, Value};
 use ubc_app::program::console::{
-    flags, LbcOutcome, Notice, Point, Points, Reply, Request, Status, Tag, MAX_POINTS,
+    flags, LbcOutcome, Notice, Point, Points, Reply, Request, StatsPage, Status, Tag, MAX_POINTS,
 };
 
 use crate::ground::{resolve_key, CounterError, CounterFile, GroundError, GroundLink, KeyError};
@@ -404,19 +404,6 @@ fn group_kind_name(kind: u8) -> &'static str {
     }
 }
 
-/// Name of a maneuver phase (`maneuvers::Phase`).
-fn group_phase_name(phase: u8) -> &'static str {
-    match phase {
-        0 => "idle",
-        1 => "approach",
-        2 => "track",
-        3 => "hold",
-        4 => "avoid",
-        5 => "no-reference",
-        _ => "unknown",
-    }
-}
-
 fn status_json(s: &Status) -> Value {
     let f = |bit| s.flags & bit != 0;
     json!({
@@ -444,46 +431,12 @@ fn status_json(s: &Status) -> Value {
         "uptime_s": s.uptime_s,
         "group": {
             "kind": group_kind_name(s.group_kind),
-            "phase": group_phase_name(s.group_phase),
+            "phase": maneuvers::Phase::from_bits(s.group_phase).map_or("unknown", maneuvers::Phase::name),
             "converged": s.group_converged,
             "error_units": s.group_error_units,
         },
     })
 }
-
-const STATS_NAMES: [[&str; 7]; 4] = [
-    [
-        "sent", "acked", "errors", "timeouts", "retries", "cser", "unkcmd",
-    ],
-    [
-        "stream_frames",
-        "unexpected",
-        "decode_errors",
-        "garbage_bytes",
-        "truncated",
-        "missing_checksum",
-        "checksum_errors",
-    ],
-    [
-        "rx_frames",
-        "rx_checksum",
-        "rx_cobs",
-        "rx_malformed",
-        "auth_bad_mac",
-        "auth_replay",
-        "states_sent",
-    ],
-    [
-        "bringups",
-        "bringup_failures",
-        "streams_lost",
-        "user_links_lost",
-        "stream_errors",
-        "console_requests",
-        "console_refusals",
-    ],
-];
-const PAGE_NAMES: [&str; 4] = ["lbc_requests", "lbc_line", "radio", "program"];
 
 /// The reply as JSON; `ok` is false for refusals and LBC failures.
 pub fn reply_json(r: &Reply) -> (bool, Value) {
@@ -507,18 +460,16 @@ pub fn reply_json(r: &Reply) -> (bool, Value) {
         Reply::GroupStarted => (true, json!({ "group": "started" })),
         Reply::GroupWaypointSet => (true, json!({ "group": "waypoint-set" })),
         Reply::Stats { page, values } => {
-            let names = STATS_NAMES.get(usize::from(*page));
+            let known = StatsPage::from_number(*page);
+            let names = known.map(StatsPage::counters);
             let mut m = serde_json::Map::new();
             for (i, v) in values.iter().enumerate() {
                 let name = names
-                    .and_then(|n| n.get(i))
-                    .map_or_else(|| format!("counter{i}"), |s| (*s).to_string());
+                    .and_then(|n| n.get(i).copied())
+                    .map_or_else(|| format!("counter{i}"), str::to_string);
                 m.insert(name, json!(v));
             }
-            let page_name = PAGE_NAMES
-                .get(usize::from(*page))
-                .copied()
-                .unwrap_or("unknown");
+            let page_name = known.map_or("unknown", StatsPage::name);
             (true, json!({ "page": page_name, "counters": m }))
         }
         Reply::Camera(c) => (true, camera_json(c)),

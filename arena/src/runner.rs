@@ -25,7 +25,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use ubc_app::program::console::{
-    flags, Point, Points, Refusal, Reply, Request, Status, MAX_POINTS,
+    flags, Point, Points, Refusal, Reply, Request, StatsPage, Status, MAX_POINTS,
 };
 
 /// Trajectory sample period.
@@ -45,51 +45,6 @@ const STATUS_EVERY: Duration = Duration::from_millis(500);
 const GOTO_STILL_MM_S: f64 = 20.0;
 /// Period of the error series in the summary.
 const SERIES_EVERY_S: f64 = 0.5;
-/// The console's statistics pages: name and counter names, in page order.
-const STATS_PAGES: [(&str, [&str; 7]); 4] = [
-    (
-        "lbc_requests",
-        [
-            "sent", "acked", "errors", "timeouts", "retries", "cser", "unkcmd",
-        ],
-    ),
-    (
-        "lbc_line",
-        [
-            "stream_frames",
-            "unexpected",
-            "decode_errors",
-            "garbage_bytes",
-            "truncated",
-            "missing_checksum",
-            "checksum_errors",
-        ],
-    ),
-    (
-        "radio",
-        [
-            "rx_frames",
-            "rx_checksum",
-            "rx_cobs",
-            "rx_malformed",
-            "auth_bad_mac",
-            "auth_replay",
-            "states_sent",
-        ],
-    ),
-    (
-        "program",
-        [
-            "bringups",
-            "bringup_failures",
-            "streams_lost",
-            "user_links_lost",
-            "stream_decode_errors",
-            "console_requests",
-            "console_refusals",
-        ],
-    ),
-];
 /// The bring-up phase code of a running program.
 const PHASE_RUNNING: u8 = 2;
 
@@ -217,18 +172,6 @@ pub struct Progress {
     pub cars: Vec<CarProgress>,
 }
 
-fn group_phase_name(p: u8) -> &'static str {
-    match p {
-        0 => "idle",
-        1 => "approach",
-        2 => "track",
-        3 => "hold",
-        4 => "avoid",
-        5 => "no-ref",
-        _ => "?",
-    }
-}
-
 impl fmt::Display for Progress {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if self.phase == 0 {
@@ -265,7 +208,7 @@ impl fmt::Display for Progress {
                 Some(s) => write!(
                     f,
                     "{}{}",
-                    group_phase_name(s.group_phase),
+                    maneuvers::Phase::from_bits(s.group_phase).map_or("?", maneuvers::Phase::name),
                     if s.group_converged { "*" } else { "" }
                 )?,
             }
@@ -1340,16 +1283,17 @@ pub fn run(
     let mut stats = Vec::new();
     for &id in &ids {
         let mut pages = serde_json::Map::new();
-        for (page, (title, names)) in (0u8..).zip(STATS_PAGES) {
+        for page in StatsPage::ALL {
             if let Ok(Reply::Stats { values, .. }) =
-                world.request(id, &Request::Stats(page), Duration::from_secs(3))
+                world.request(id, &Request::Stats(page as u8), Duration::from_secs(3))
             {
-                let counters: serde_json::Map<String, Value> = names
+                let counters: serde_json::Map<String, Value> = page
+                    .counters()
                     .iter()
                     .zip(values.iter())
                     .map(|(n, v)| ((*n).to_owned(), json!(v)))
                     .collect();
-                pages.insert(title.to_owned(), Value::Object(counters));
+                pages.insert(page.name().to_owned(), Value::Object(counters));
             }
         }
         stats.push(Value::Object(pages));

@@ -144,6 +144,31 @@ impl Phase {
     pub const fn bits(self) -> u8 {
         self as u8
     }
+
+    /// The phase with mode-byte value `bits`, if there is one.
+    pub const fn from_bits(bits: u8) -> Option<Phase> {
+        Some(match bits {
+            0 => Phase::Idle,
+            1 => Phase::Approach,
+            2 => Phase::Track,
+            3 => Phase::Hold,
+            4 => Phase::Avoid,
+            5 => Phase::NoReference,
+            _ => return None,
+        })
+    }
+
+    /// The phase's name in reports.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Phase::Idle => "idle",
+            Phase::Approach => "approach",
+            Phase::Track => "track",
+            Phase::Hold => "hold",
+            Phase::Avoid => "avoid",
+            Phase::NoReference => "no-reference",
+        }
+    }
 }
 
 /// What a car broadcasts about its maneuver.
@@ -216,4 +241,20 @@ pub struct Me {
     pub heading: f32,
     /// Signed speed, mm/s.
     pub speed: f32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Phase;
+
+    #[test]
+    fn phase_bits_round_trip() {
+        for b in 0..=255u8 {
+            match Phase::from_bits(b) {
+                Some(p) => assert_eq!(p.bits(), b),
+                None => assert!(b > 5, "{b}"),
+            }
+        }
+        assert_eq!(Phase::from_bits(5).map(Phase::name), Some("no-reference"));
+    }
 }

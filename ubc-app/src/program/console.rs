@@ -562,6 +562,67 @@ pub enum StatsPage {
     Program = 3,
 }
 
+impl StatsPage {
+    /// Every page, in page order.
+    pub const ALL: [StatsPage; STATS_PAGES as usize] = [
+        StatsPage::LbcRequests,
+        StatsPage::LbcLine,
+        StatsPage::Radio,
+        StatsPage::Program,
+    ];
+
+    /// The page's name in reports.
+    pub const fn name(self) -> &'static str {
+        match self {
+            StatsPage::LbcRequests => "lbc_requests",
+            StatsPage::LbcLine => "lbc_line",
+            StatsPage::Radio => "radio",
+            StatsPage::Program => "program",
+        }
+    }
+
+    /// The names of the page's counters, in the order of [`Reply::Stats`] values.
+    pub const fn counters(self) -> [&'static str; STATS_PER_PAGE] {
+        match self {
+            StatsPage::LbcRequests => [
+                "sent", "acked", "errors", "timeouts", "retries", "cser", "unkcmd",
+            ],
+            StatsPage::LbcLine => [
+                "stream_frames",
+                "unexpected",
+                "decode_errors",
+                "garbage_bytes",
+                "truncated",
+                "missing_checksum",
+                "checksum_errors",
+            ],
+            StatsPage::Radio => [
+                "rx_frames",
+                "rx_checksum",
+                "rx_cobs",
+                "rx_malformed",
+                "auth_bad_mac",
+                "auth_replay",
+                "states_sent",
+            ],
+            StatsPage::Program => [
+                "bringups",
+                "bringup_failures",
+                "streams_lost",
+                "user_links_lost",
+                "stream_errors",
+                "console_requests",
+                "console_refusals",
+            ],
+        }
+    }
+
+    /// The page with number `n`.
+    pub fn from_number(n: u8) -> Option<Self> {
+        Self::ALL.get(usize::from(n)).copied()
+    }
+}
+
 /// A console reply (car to ground station).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {

@@ -1147,11 +1147,11 @@ impl Program {
         let d = l.deframer;
         let r = self.radio_stats().unwrap_or_default();
         let c = self.counters;
-        let values: [u32; 7] = match page {
-            0 => [
+        let values: [u32; 7] = match console::StatsPage::from_number(page)? {
+            console::StatsPage::LbcRequests => [
                 l.sent, l.acked, l.errors, l.timeouts, l.retries, l.cser, l.unkcmd,
             ],
-            1 => [
+            console::StatsPage::LbcLine => [
                 l.stream_frames,
                 l.unexpected,
                 l.decode_errors,
@@ -1160,7 +1160,7 @@ impl Program {
                 d.missing_checksum,
                 d.checksum_errors,
             ],
-            2 => [
+            console::StatsPage::Radio => [
                 r.rx_frames,
                 r.rx_checksum,
                 r.rx_cobs,
@@ -1169,7 +1169,7 @@ impl Program {
                 r.auth_replay,
                 r.states_sent,
             ],
-            3 => [
+            console::StatsPage::Program => [
                 c.bringups,
                 c.bringup_failures,
                 c.streams_lost,
@@ -1178,7 +1178,6 @@ impl Program {
                 c.console_requests,
                 c.console_refusals,
             ],
-            _ => return None,
         };
         Some(values.iter().copied().collect())
     }
