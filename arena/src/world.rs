@@ -554,37 +554,20 @@ impl World {
 
     /// Sends a console request to car `id` and waits up to `timeout` for its reply.
     pub fn request(&self, id: u8, req: &Request, timeout: Duration) -> Result<Reply, WorldError> {
-        let car = CarId::new(id).ok_or(WorldError::BadCar { id })?;
-        let mut buf = [0u8; console::MAX_PAYLOAD];
-        let n = req.encode(&mut buf).map_err(WorldError::Encode)?;
         let deadline = Instant::now() + timeout;
-        let rx: Receiver<Outcome> = loop {
-            {
-                let mut e = self.shared.lock();
-                if self.shared.stop.load(Ordering::Relaxed) {
-                    return Err(WorldError::EngineStopped);
-                }
-                let now = self.shared.now_us();
-                match e
-                    .ground
-                    .command(now, Address::Car(car), req.tag() as u8, &buf[..n])
-                {
-                    Ok(h) => {
-                        let (tx, rx) = mpsc::channel();
-                        e.waiters.push((h, tx));
-                        e.counters.requests += 1;
-                        break rx;
-                    }
-                    Err(radio_mac::SendError::Busy) | Err(radio_mac::SendError::TxQueueFull) => {}
-                    Err(err) => return Err(WorldError::Send(err)),
-                }
+        let pending = loop {
+            if let Some(p) = self.try_request(id, req)? {
+                break p;
             }
             if Instant::now() >= deadline {
                 return Err(WorldError::Timeout { id });
             }
             thread::sleep(Duration::from_millis(5));
         };
-        match rx.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
+        match pending
+            .rx
+            .recv_timeout(deadline.saturating_duration_since(Instant::now()))
+        {
             Ok(Outcome::Reply(tag, payload)) => {
                 Reply::decode(tag, &payload).map_err(WorldError::BadReply)
             }
