@@ -19,7 +19,7 @@
 //! | 2+2 | blob centroid column and row, quarter pixels |
 //! | 2+2+2+2 | bounding box min x, min y, max x, max y (inclusive) |
 
-use super::group::{MIN_INTERVAL_US, REFRESH_US, STEER_STEP_MRAD, VELOCITY_STEP_MM_S};
+use super::group::{Gated, SendGate, STEER_STEP_MRAD, VELOCITY_STEP_MM_S};
 use vision::blobs::{Blob, Detections};
 use vision::follow::{observe_class, FollowCommand, FollowConfig, FollowTarget, Follower};
 use vision::pinhole::{CameraModel, MarkerModel, Observation};
@@ -167,15 +167,21 @@ pub struct Camera {
     detections: Detections,
     follower: Option<Follower>,
     leader: Option<Observation>,
-    /// Last follow command handed to the LBC client and when.
-    sent: Option<(FollowCommand, u64)>,
+    /// Which follow commands go to the LBC.
+    gate: SendGate<FollowCommand>,
 }
 
-/// Whether `next` is worth sending after `last` (the group maneuvers' thresholds).
-fn differs(last: FollowCommand, next: FollowCommand) -> bool {
-    (next.steering_mrad - last.steering_mrad).abs() >= STEER_STEP_MRAD
-        || (next.velocity_mm_s - last.velocity_mm_s).abs() >= VELOCITY_STEP_MM_S
-        || (next.velocity_mm_s == 0) != (last.velocity_mm_s == 0)
+/// The group maneuvers' thresholds; a zero velocity is the stop.
+impl Gated for FollowCommand {
+    fn is_stop(&self) -> bool {
+        self.velocity_mm_s == 0
+    }
+
+    fn differs_from(&self, last: &Self) -> bool {
+        (self.steering_mrad - last.steering_mrad).abs() >= STEER_STEP_MRAD
+            || (self.velocity_mm_s - last.velocity_mm_s).abs() >= VELOCITY_STEP_MM_S
+            || self.is_stop() != last.is_stop()
+    }
 }
 
 impl Camera {
@@ -190,7 +196,7 @@ impl Camera {
         if self.follower.map(|f| *f.target()) != Some(target) {
             self.follower = Some(Follower::new(target, FollowConfig::default()));
             self.leader = None;
-            self.sent = None;
+            self.gate.reset();
         }
     }
 
@@ -198,7 +204,7 @@ impl Camera {
     pub fn stop_follow(&mut self) {
         self.follower = None;
         self.leader = None;
-        self.sent = None;
+        self.gate.reset();
     }
 
     /// True while following.
@@ -229,26 +235,12 @@ impl Camera {
     /// `may_send` is false while an earlier command is still with the LBC client.
     pub fn step(&mut self, now_us: u64, may_send: bool) -> Option<FollowCommand> {
         let next = self.follow_command(now_us)?;
-        let due = match self.sent {
-            None => true,
-            Some((last, at)) => {
-                let since = now_us.saturating_sub(at);
-                (next.velocity_mm_s == 0 && last.velocity_mm_s != 0)
-                    || (since >= MIN_INTERVAL_US && differs(last, next))
-                    || since >= REFRESH_US
-            }
-        };
-        if due && may_send {
-            self.sent = Some((next, now_us));
-            Some(next)
-        } else {
-            None
-        }
+        self.gate.offer(now_us, next, may_send)
     }
 
     /// The last command handed out did not reach the LBC: send again at the next period.
     pub fn unsent(&mut self) {
-        self.sent = None;
+        self.gate.reset();
     }
 
     /// Sequence of the latest processed frame (0: none).
@@ -295,6 +287,7 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::program::group::REFRESH_US;
     use proptest::prelude::*;
     use vision::blobs::{BlobDetector, Run};
 

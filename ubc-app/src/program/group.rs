@@ -26,14 +26,71 @@ pub const STEER_STEP_MRAD: i16 = 20;
 /// Velocity change that is worth a new `MOVE_SV`, mm/s.
 pub const VELOCITY_STEP_MM_S: i16 = 10;
 
+/// A maneuver command the [`SendGate`] thins out.
+pub trait Gated: Copy {
+    /// A stop: it goes out at once.
+    fn is_stop(&self) -> bool;
+    /// Whether `self` is worth sending after `last`.
+    fn differs_from(&self, last: &Self) -> bool;
+}
+
+/// Decides which of a maneuver's per-sample commands go to the LBC (rules in the module docs).
+#[derive(Debug, Clone)]
+pub struct SendGate<C> {
+    /// Last command handed to the LBC client and when.
+    sent: Option<(C, u64)>,
+}
+
+impl<C> Default for SendGate<C> {
+    fn default() -> Self {
+        Self { sent: None }
+    }
+}
+
+impl<C: Gated> SendGate<C> {
+    /// `next` if it is due now and `may_send` (no earlier command still with the LBC client).
+    pub fn offer(&mut self, now_us: u64, next: C, may_send: bool) -> Option<C> {
+        let due = match self.sent {
+            None => true,
+            Some((last, at)) => {
+                let since = now_us.saturating_sub(at);
+                (next.is_stop() && !last.is_stop())
+                    || (since >= MIN_INTERVAL_US && next.differs_from(&last))
+                    || since >= REFRESH_US
+            }
+        };
+        if due && may_send {
+            self.sent = Some((next, now_us));
+            Some(next)
+        } else {
+            None
+        }
+    }
+
+    /// Forgets the last command: the next one offered goes out (it did not reach the LBC, or
+    /// a new maneuver starts).
+    pub fn reset(&mut self) {
+        self.sent = None;
+    }
+}
+
+impl Gated for Motion {
+    fn is_stop(&self) -> bool {
+        *self == Motion::Stop
+    }
+
+    fn differs_from(&self, last: &Self) -> bool {
+        differs(*last, *self)
+    }
+}
+
 /// The group maneuver of this car.
 #[derive(Debug, Clone)]
 pub struct Group {
     controller: Controller,
     params: ManeuverParams,
     status: Status,
-    /// Last command handed to the LBC client and when.
-    sent: Option<(Motion, u64)>,
+    gate: SendGate<Motion>,
 }
 
 impl Default for Group {
@@ -42,7 +99,7 @@ impl Default for Group {
             controller: Controller::new(ControllerConfig::default()),
             params: ManeuverParams::Idle,
             status: Status::default(),
-            sent: None,
+            gate: SendGate::default(),
         }
     }
 }
@@ -94,7 +151,7 @@ impl Group {
         self.controller.start(params);
         self.params = params;
         self.status = Status::default();
-        self.sent = None;
+        self.gate.reset();
     }
 
     /// Stops the maneuver (the caller stops the car).
@@ -187,27 +244,13 @@ impl Group {
             // The camera part of the program drives the car; the controller only holds.
             return None;
         }
-        let due = match self.sent {
-            None => true,
-            Some((last, at)) => {
-                let since = now_us.saturating_sub(at);
-                (out.command == Motion::Stop && last != Motion::Stop)
-                    || (since >= MIN_INTERVAL_US && differs(last, out.command))
-                    || since >= REFRESH_US
-            }
-        };
-        if due && may_send {
-            self.sent = Some((out.command, now_us));
-            Some(out.command)
-        } else {
-            None
-        }
+        self.gate.offer(now_us, out.command, may_send)
     }
 
     /// The command handed over by the last [`Group::step`] did not reach the LBC: send it
     /// again at the next chance.
     pub fn unsent(&mut self) {
-        self.sent = None;
+        self.gate.reset();
     }
 }
 

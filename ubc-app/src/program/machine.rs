@@ -743,11 +743,7 @@ impl Program {
         self.lbc_error_at_us = Some(now);
         log.log(now, LogEvent::LbcLost);
         let _ = self.send(now, Command::Stop, Owner::Stop);
-        if self.maneuver.active() {
-            self.maneuver.abort();
-            log.log(now, LogEvent::ManeuverAborted);
-        }
-        self.stop_group(now, log);
+        self.stop_maneuvers(now, log);
         if let Some(m) = self.mac.as_mut() {
             // Heartbeats take over from the state broadcast: they must not advertise the
             // maneuver that just stopped.
@@ -862,6 +858,16 @@ impl Program {
         }
     }
 
+    /// Aborts the go-to maneuver and stops the group maneuver, whichever runs (the caller
+    /// stops the car).
+    fn stop_maneuvers<S: LogSink + ?Sized>(&mut self, now: u64, log: &mut S) {
+        if self.maneuver.active() {
+            self.maneuver.abort();
+            log.log(now, LogEvent::ManeuverAborted);
+        }
+        self.stop_group(now, log);
+    }
+
     /// Stops a running group maneuver (the caller stops the car).
     fn stop_group<S: LogSink + ?Sized>(&mut self, now: u64, log: &mut S) {
         self.camera.stop_follow();
@@ -912,11 +918,7 @@ impl Program {
                 self.user_lost = true;
                 self.counters.user_links_lost += 1;
                 log.log(now, LogEvent::UserLinkLost);
-                if self.maneuver.active() {
-                    self.maneuver.abort();
-                    log.log(now, LogEvent::ManeuverAborted);
-                }
-                self.stop_group(now, log);
+                self.stop_maneuvers(now, log);
                 let _ = self.send(now, Command::Stop, Owner::Stop);
                 self.notice(now, Notice::UserLinkLost);
             }
@@ -1042,11 +1044,7 @@ impl Program {
                     return Some(Refusal::DriveDisabled);
                 }
                 if is_motion(&cmd) || cmd == Command::Stop {
-                    if self.maneuver.active() {
-                        self.maneuver.abort();
-                        log.log(now, LogEvent::ManeuverAborted);
-                    }
-                    self.stop_group(now, log);
+                    self.stop_maneuvers(now, log);
                 }
                 // The user takes the drive away from a group maneuver too.
                 if matches!(cmd, Command::Drds | Command::Init) {
@@ -1091,11 +1089,7 @@ impl Program {
                 self.respond(id, Tag::ManeuverStart as u8, &Reply::ManeuverStarted(n));
             }
             Request::ManeuverStop => {
-                if self.maneuver.active() {
-                    self.maneuver.abort();
-                    log.log(now, LogEvent::ManeuverAborted);
-                }
-                self.stop_group(now, log);
+                self.stop_maneuvers(now, log);
                 let _ = self.send(now, Command::Stop, Owner::Stop);
                 self.respond(id, Tag::ManeuverStop as u8, &Reply::ManeuverStopped);
             }
@@ -1106,11 +1100,7 @@ impl Program {
                 if !self.drive_enabled {
                     return Some(Refusal::DriveDisabled);
                 }
-                if self.maneuver.active() {
-                    self.maneuver.abort();
-                    log.log(now, LogEvent::ManeuverAborted);
-                }
-                self.stop_group(now, log);
+                self.stop_maneuvers(now, log);
                 if params == maneuvers::ManeuverParams::Idle {
                     let _ = self.send(now, Command::Stop, Owner::Stop);
                 } else {
