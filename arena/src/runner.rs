@@ -13,7 +13,7 @@ use crate::experiment::{
 };
 use crate::metrics::{self, ErrorStats, Sample};
 use crate::plot;
-use crate::world::{PendingReply, World, WorldError, MM_PER_UNIT};
+use crate::world::{CarTruth, PendingReply, World, WorldError, MM_PER_UNIT};
 use maneuvers::Formation;
 use serde::Serialize;
 use serde_json::{json, Value};
@@ -152,6 +152,18 @@ pub struct CarProgress {
     pub v_mm_s: f64,
     /// The car's latest status (it may be up to a few seconds old).
     pub status: Option<Status>,
+}
+
+impl CarProgress {
+    fn new(truth: &CarTruth, status: Option<Status>) -> Self {
+        CarProgress {
+            id: truth.id,
+            x: truth.pose.x_mm / MM_PER_UNIT,
+            y: truth.pose.y_mm / MM_PER_UNIT,
+            v_mm_s: truth.v_mm_s,
+            status,
+        }
+    }
 }
 
 /// A progress report: during bring-up each time a car is ready (phase 0, the cars that are
@@ -372,12 +384,7 @@ fn phase_error(phase: &Phase, ids: &[u8], now: &[Sample]) -> Option<f64> {
         PhaseKind::Goto { .. } => ids
             .iter()
             .zip(now)
-            .filter_map(|(&id, s)| {
-                phase.goto_points(id).last().map(|&p| {
-                    let (x, y) = waypoint_mm(p);
-                    (s.x_mm - x).hypot(s.y_mm - y)
-                })
-            })
+            .filter_map(|(&id, s)| phase.goto_points(id).last().map(|&p| distance_to(s, p)))
             .reduce(f64::max),
         PhaseKind::Formation(f) => {
             let leader = now[ids.iter().position(|&i| i == f.leader)?];
@@ -395,10 +402,7 @@ fn phase_error(phase: &Phase, ids: &[u8], now: &[Sample]) -> Option<f64> {
         } => {
             let e = metrics::circle_error(
                 now,
-                (
-                    f64::from(centre[0]) * MM_PER_UNIT,
-                    f64::from(centre[1]) * MM_PER_UNIT,
-                ),
+                waypoint_mm(*centre),
                 f64::from(*radius_units) * MM_PER_UNIT,
             );
             Some(e.radius_mm.max(e.spacing_mm))
@@ -408,6 +412,12 @@ fn phase_error(phase: &Phase, ids: &[u8], now: &[Sample]) -> Option<f64> {
 
 fn waypoint_mm(w: [u16; 2]) -> (f64, f64) {
     (f64::from(w[0]) * MM_PER_UNIT, f64::from(w[1]) * MM_PER_UNIT)
+}
+
+/// Distance of a car's true pose from point `w` (tracking units), mm.
+fn distance_to(s: &Sample, w: [u16; 2]) -> f64 {
+    let (x, y) = waypoint_mm(w);
+    (s.x_mm - x).hypot(s.y_mm - y)
 }
 
 /// The experiment's run state.
@@ -663,10 +673,7 @@ impl Runner<'_> {
             .last()
             .copied();
         match (last, self.last_sample.get(k)) {
-            (Some(p), Some(s)) => {
-                let (x, y) = waypoint_mm(p);
-                (s.x_mm - x).hypot(s.y_mm - y) <= self.exp.phases[a.index].tolerance_mm
-            }
+            (Some(p), Some(s)) => distance_to(s, p) <= self.exp.phases[a.index].tolerance_mm,
             _ => false,
         }
     }
@@ -822,12 +829,11 @@ impl Runner<'_> {
             None => {
                 next == 0 || {
                     // Reached the previous waypoint (acknowledged before).
-                    let prev = waypoint_mm(f.waypoints[next - 1]);
                     let Some(k) = self.car_index(f.leader) else {
                         return;
                     };
                     a.waypoint_acked >= next
-                        && (now[k].x_mm - prev.0).hypot(now[k].y_mm - prev.1)
+                        && distance_to(&now[k], f.waypoints[next - 1])
                             <= f64::from(f.reach_units) * MM_PER_UNIT
                 }
             }
@@ -877,11 +883,9 @@ impl Runner<'_> {
                 let leader_done = match f.waypoints.last() {
                     None => true,
                     Some(&last) => {
-                        let w = waypoint_mm(last);
                         a.waypoint_acked == f.waypoints.len()
                             && self.car_index(f.leader).is_some_and(|k| {
-                                (now[k].x_mm - w.0).hypot(now[k].y_mm - w.1)
-                                    <= f64::from(f.reach_units) * MM_PER_UNIT
+                                distance_to(&now[k], last) <= f64::from(f.reach_units) * MM_PER_UNIT
                             })
                     }
                 };
@@ -974,8 +978,7 @@ impl Runner<'_> {
         let phase = &self.exp.phases[a.index];
         for ((c, s), &id) in self.cars.iter_mut().zip(now).zip(&self.ids) {
             if let Some(&last) = phase.goto_points(id).last() {
-                let (x, y) = waypoint_mm(last);
-                c.goto_error_mm = Some((s.x_mm - x).hypot(s.y_mm - y));
+                c.goto_error_mm = Some(distance_to(s, last));
             }
         }
         let converged_s = if completed {
@@ -1099,13 +1102,7 @@ pub fn run(
                         .zip(&ready)
                         .zip(&last)
                         .filter(|((_, r), _)| **r)
-                        .map(|((tr, _), st)| CarProgress {
-                            id: tr.id,
-                            x: tr.pose.x_mm / MM_PER_UNIT,
-                            y: tr.pose.y_mm / MM_PER_UNIT,
-                            v_mm_s: tr.v_mm_s,
-                            status: *st,
-                        })
+                        .map(|((tr, _), st)| CarProgress::new(tr, *st))
                         .collect(),
                 });
                 continue;
@@ -1241,13 +1238,7 @@ pub fn run(
                 cars: truth
                     .iter()
                     .zip(&r.cars)
-                    .map(|(tr, c)| CarProgress {
-                        id: tr.id,
-                        x: tr.pose.x_mm / MM_PER_UNIT,
-                        y: tr.pose.y_mm / MM_PER_UNIT,
-                        v_mm_s: tr.v_mm_s,
-                        status: c.status,
-                    })
+                    .map(|(tr, c)| CarProgress::new(tr, c.status))
                     .collect(),
             };
             progress(&line);
