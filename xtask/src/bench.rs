@@ -639,12 +639,14 @@ fn run_captured(cmd: &mut Command, what: &str, any_status: bool) -> Result<Strin
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
+/// The yosys script of the area figure, run in `verilator-tb/`.
+const SOFTCORE_AREA_SCRIPT: &str =
+    "read_verilog rtl/rv_core.v rtl/synth_top.v; synth_ice40 -dsp -top synth_top; stat";
+
 /// Cell counts of `yosys ... synth_ice40 -dsp; stat` on the core (`rtl/synth_top.v`).
 fn softcore_area() -> Result<BTreeMap<String, u64>> {
-    let script =
-        "read_verilog rtl/rv_core.v rtl/synth_top.v; synth_ice40 -dsp -top synth_top; stat";
     let out = Command::new("yosys")
-        .args(["-p", script])
+        .args(["-p", SOFTCORE_AREA_SCRIPT])
         .current_dir(workspace_root().join("verilator-tb"))
         .stdin(Stdio::null())
         .stderr(Stdio::inherit())
@@ -707,23 +709,8 @@ fn softcore() -> Result<String> {
     let cpi = awake / insns.max(1.0);
     let fw_speed = cycles / wall.max(1e-9);
 
-    let busy_args = [
-        "test",
-        "-p",
-        "verilator-tb",
-        "--release",
-        "--test",
-        "soc",
-        "--",
-        "--ignored",
-        "--nocapture",
-        "busy_speed",
-    ];
-    let text = run_captured(
-        Command::new(&cargo).args(busy_args),
-        "the busy_speed test of verilator-tb",
-        false,
-    )?;
+    // `busy_speed` is the one ignored test of `soc`
+    let text = ignored_test("verilator-tb", "soc", &[])?;
     let busy = figures(&text, "busy").context("busy_speed printed no figures")?;
     let busy_speed = field(&busy, "cycles")? / field(&busy, "wall_s")?.max(1e-9);
     let ls = figures(&text, "busy-lockstep").context("busy_speed printed no lockstep figures")?;
@@ -775,9 +762,8 @@ fn softcore() -> Result<String> {
     );
     let _ = write!(
         md,
-        "\nReproduce: `cargo xtask bench --only softcore` (firmware: `cargo {} ELF --lbc-emu 3 --max-cycles {SOFTCORE_CYCLES}`; busy core: `cargo {}`; area: `cd verilator-tb && yosys -p \"read_verilog rtl/rv_core.v rtl/synth_top.v; synth_ice40 -dsp -top synth_top; stat\"`). Speeds depend on the machine's load.",
+        "\nReproduce: `cargo xtask bench --only softcore` (firmware: `cargo {} ELF --lbc-emu 3 --max-cycles {SOFTCORE_CYCLES}`; busy core: `cargo test -p verilator-tb --release --test soc -- --ignored --nocapture busy_speed`; area: `cd verilator-tb && yosys -p \"{SOFTCORE_AREA_SCRIPT}\"`). Speeds depend on the machine's load.",
         run_args.join(" "),
-        busy_args.join(" ")
     );
     Ok(md)
 }
