@@ -1,5 +1,6 @@
-//! `almc experiment run FILE [--out DIR]`: plays an experiment file (see
-//! `docs/experiments.md`) with QEMU cars in the arena, shows its progress and summary, and
+//! `almc experiment run FILE [--out DIR] [--engine iss|qemu] [--threads N] [--realtime]`:
+//! plays an experiment file (see `docs/experiments.md`) in the arena, every car on the soft
+//! core's model in virtual time (or in QEMU in real time), shows its progress and summary, and
 //! writes its results; `almc experiment check FILE` only checks the file.
 
 use std::path::PathBuf;
@@ -8,14 +9,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use arena::experiment::{self, Experiment};
+use arena::world::EngineKind;
 use clap::{Args, Subcommand};
 
 /// `almc experiment ...`
 #[derive(Debug, Subcommand)]
 pub enum ExperimentCommand {
-    /// Run an experiment: progress each second, then a summary and CSV, JSONL, JSON and SVG
-    /// outputs. Exit code 0: every phase completed without collision; 2: the run ended
-    /// otherwise; 1: error.
+    /// Run an experiment: progress each second of world time, then a summary and CSV, JSONL,
+    /// JSON and SVG outputs. Exit code 0: every phase completed without collision and no car
+    /// failed; 2: the run ended otherwise; 3: a car's firmware stopped; 1: error.
     Run(RunArgs),
     /// Check an experiment file without running it.
     Check {
@@ -32,9 +34,22 @@ pub struct RunArgs {
     /// Output directory (default: `experiment-out/<name>`).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Firmware ELF (default: `UBC_FW_ELF`, else built with `cargo xtask fw`).
+    /// Firmware ELF for every car (default: the engine's build: `VTB_FIRMWARE` or `cargo xtask
+    /// fw --board softcore` for iss, `UBC_FW_ELF` or `cargo xtask fw --board qemu_virt` for
+    /// qemu).
     #[arg(long, value_name = "ELF")]
     firmware: Option<PathBuf>,
+    /// Car engine, overriding the file's `engine`: `iss` (the soft core's model, virtual
+    /// time) or `qemu` (real time).
+    #[arg(long, value_parser = ["iss", "qemu"])]
+    engine: Option<String>,
+    /// Threads stepping the cars (iss); the outputs do not depend on it.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    threads: Option<u16>,
+    /// Pace world time to the wall clock, so a person can talk to the cars with `almc car
+    /// --radio unix:<run dir>/ground.sock` (printed at start).
+    #[arg(long)]
+    realtime: bool,
 }
 
 pub fn run(cmd: ExperimentCommand) -> ExitCode {
@@ -61,16 +76,23 @@ pub fn run(cmd: ExperimentCommand) -> ExitCode {
 }
 
 fn run_one(args: &RunArgs) -> ExitCode {
-    let exp = match Experiment::load(&args.file) {
+    let mut exp = match Experiment::load(&args.file) {
         Ok(e) => e,
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::FAILURE;
         }
     };
+    if let Some(engine) = args.engine.as_deref().and_then(EngineKind::parse) {
+        exp.engine = engine;
+    }
+    if let Some(t) = args.threads {
+        exp.threads = usize::from(t);
+    }
+    exp.realtime |= args.realtime;
     let firmware = match &args.firmware {
         Some(p) => p.clone(),
-        None => match qemu_harness_elf() {
+        None => match exp.engine.default_firmware() {
             Ok(p) => p,
             Err(e) => {
                 eprintln!("error: no firmware: {e}");
@@ -88,16 +110,19 @@ fn run_one(args: &RunArgs) -> ExitCode {
         eprintln!("warning: Ctrl-C will not stop the experiment cleanly: {e}");
     }
     println!(
-        "experiment {}: {} cars, up to {} s; booting",
+        "experiment {}: {} cars on {}, up to {} s; booting",
         exp.name,
         exp.cars.len(),
+        exp.engine.name(),
         exp.duration_s
     );
     let result = experiment::run(&exp, &firmware, &out, &mut |p| println!("{p}"), &cancel);
     match result {
         Ok(s) => {
             print_summary(&s, &out);
-            if s.completed && s.all_arrived && s.collisions.is_empty() {
+            if !s.failed_cars.is_empty() {
+                ExitCode::from(3)
+            } else if s.completed && s.all_arrived && s.collisions.is_empty() {
                 ExitCode::SUCCESS
             } else {
                 ExitCode::from(2)
@@ -120,7 +145,16 @@ fn mm(v: Option<f64>) -> String {
 
 /// The summary on screen (the full one is `summary.json` in `out`).
 pub fn print_summary(s: &experiment::Summary, out: &std::path::Path) {
-    println!("summary of {} ({:.1} s):", s.name, s.duration_s);
+    println!(
+        "summary of {} ({:.1} s on {}{}):",
+        s.name,
+        s.duration_s,
+        s.engine,
+        if s.aborted { ", ABORTED" } else { "" }
+    );
+    for f in &s.failed_cars {
+        println!("  car{} FAILED at {:.1} s: {}", f.car, f.t_s, f.reason);
+    }
     for p in &s.phases {
         if p.kind == "goto" {
             println!(
@@ -167,7 +201,7 @@ pub fn print_summary(s: &experiment::Summary, out: &std::path::Path) {
     for c in &s.cars {
         let lbc = &c.lbc;
         println!(
-            "  car{}: {:.0} mm travelled{}, wall violations {}, radio states heard {}, LBC stream frames {} (errors {}, resets {})",
+            "  car{}: {:.0} mm travelled{}, wall violations {}, radio states heard {}, LBC stream frames {} (errors {}, resets {}){}",
             c.id,
             c.distance_mm,
             match (c.final_error_mm, c.arrived) {
@@ -180,6 +214,8 @@ pub fn print_summary(s: &experiment::Summary, out: &std::path::Path) {
             lbc["stream_frames"],
             lbc["errors"],
             lbc["resets"],
+            c.processor_load
+                .map_or(String::new(), |l| format!(", processor load {:.1} %", 100.0 * l)),
         );
     }
     let g = &s.radio["ground"];
@@ -196,8 +232,4 @@ pub fn print_summary(s: &experiment::Summary, out: &std::path::Path) {
     );
     println!("  outputs in {}", out.display());
     println!("  plot: {}", out.join("trajectories.svg").display());
-}
-
-fn qemu_harness_elf() -> Result<PathBuf, String> {
-    arena::world::firmware_elf().map_err(|e| e.to_string())
 }

@@ -1,24 +1,24 @@
-//! Camera frames into running cars: each car's QEMU RAM is a shared file (`qemu-harness`), and
-//! its frame-grabber window sits at [`FRAME_WINDOW_OFFSET`] in it. [`RamWindow`] is the writer
-//! side of the window protocol over such a file; [`CameraFeed`] renders every car's view at a
-//! fixed rate on its own thread and publishes it; [`read_window_frame`] is a host reader (for
+//! Camera frames into cars' frame grabbers. [`WindowPublisher`] is the writer side of the
+//! window protocol over any [`WindowWriter`]: a soft-core car's window in the SoC model, or a
+//! QEMU car's RAM (a shared file, `qemu-harness`, with the window at [`FRAME_WINDOW_OFFSET`];
+//! [`RamWindow`]). The world renders every camera car's view at a fixed rate of world time and
+//! publishes it. [`read_window_frame`] is a host reader of RAM files (for
 //! `almc camera snapshot`).
 //!
-//! Protocol order over the file: the buffer's `buffer_seq` is set to `WRITING` (one `pwrite`),
-//! the pixels are written, then `capture_us` with `buffer_seq`, then `ready`, then `sequence`,
-//! each a separate `pwrite` in that order (`docs/camera.md`).
+//! Protocol order: the buffer's `buffer_seq` is set to `WRITING` (one write), the pixels are
+//! written, then `capture_us` with `buffer_seq`, then `ready`, then `sequence`, each a separate
+//! write in that order (`docs/camera.md`).
 
 /// The vision crate whose types this module's API uses.
 pub use vision;
 
-use crate::camera::{CameraConfig, CameraError, CarPose, SyntheticCamera};
+use crate::camera::{CameraConfig, CameraError, CarPose};
+use crate::engine::{FrameWriteError, WindowWriter};
 use qemu_harness::{SharedRam, FRAME_WINDOW_OFFSET};
 use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
-use std::thread::{self, JoinHandle};
-use std::time::{Duration, Instant};
+use std::thread;
+use std::time::Duration;
 use vision::blobs::{BlobDetector, Detections};
 use vision::colour::MARKER_CLASSES;
 use vision::frame::{field, FrameTicket, HeaderError, HeaderRepr, HEADER_LEN, WINDOW_LEN, WRITING};
@@ -76,16 +76,20 @@ impl From<HeaderError> for FeedError {
     }
 }
 
-/// The writer of one car's window in its RAM file.
-#[derive(Debug)]
-pub struct RamWindow {
-    ram: SharedRam,
+/// The writer side of the window protocol, over any [`WindowWriter`]: a QEMU car's RAM file
+/// or a soft-core car's frame-grabber window in the SoC model.
+#[derive(Debug, Clone)]
+pub struct WindowPublisher {
     header: HeaderRepr,
 }
 
-impl RamWindow {
-    /// Writes a fresh header (nothing published) for `geometry` into the RAM file.
-    pub fn init(ram: SharedRam, geometry: &FrameGeometry) -> Result<Self, FeedError> {
+fn sink_err(e: FrameWriteError) -> FeedError {
+    FeedError::Io(io::Error::other(e.0))
+}
+
+impl WindowPublisher {
+    /// Writes a fresh header (nothing published) for `geometry` into the window.
+    pub fn init(sink: &mut dyn WindowWriter, geometry: &FrameGeometry) -> Result<Self, FeedError> {
         let header = HeaderRepr::new(geometry.width, geometry.height, geometry.format);
         if header.window_len() > WINDOW_LEN {
             return Err(FeedError::FrameSize {
@@ -95,8 +99,8 @@ impl RamWindow {
         }
         let mut bytes = [0u8; HEADER_LEN];
         header.emit(&mut bytes)?;
-        ram.write_at(FRAME_WINDOW_OFFSET, &bytes)?;
-        Ok(RamWindow { ram, header })
+        sink.write_window(0, &bytes).map_err(sink_err)?;
+        Ok(WindowPublisher { header })
     }
 
     /// The header as last written.
@@ -104,15 +108,13 @@ impl RamWindow {
         &self.header
     }
 
-    /// Writes `bytes` over the header field at `range` (one positioned write).
-    fn put(&self, range: &std::ops::Range<usize>, bytes: &[u8]) -> io::Result<()> {
-        debug_assert_eq!(range.len(), bytes.len());
-        self.ram
-            .write_at(FRAME_WINDOW_OFFSET + range.start as u64, bytes)
-    }
-
     /// Publishes `pixels` (one packed frame) as the next frame; returns its sequence.
-    pub fn publish(&mut self, pixels: &[u8], capture_us: u64) -> Result<u32, FeedError> {
+    pub fn publish(
+        &mut self,
+        sink: &mut dyn WindowWriter,
+        pixels: &[u8],
+        capture_us: u64,
+    ) -> Result<u32, FeedError> {
         let mut h = self.header;
         let needed = h.frame_len();
         if pixels.len() != needed {
@@ -126,26 +128,63 @@ impl RamWindow {
         } else {
             ((h.ready & 1) ^ 1) as usize
         };
-        // The local copy and the file agree on WRITING even if a later write fails.
+        let mut put = |range: &std::ops::Range<usize>, bytes: &[u8]| {
+            debug_assert_eq!(range.len(), bytes.len());
+            sink.write_window(range.start, bytes).map_err(sink_err)
+        };
+        // The local copy and the window agree on WRITING even if a later write fails.
         self.header.buffer_seq[index] = WRITING;
         h.buffer_seq[index] = WRITING;
-        self.put(&field::BUFFER_SEQ[index], &WRITING.to_le_bytes())?;
-        let start = FRAME_WINDOW_OFFSET + u64::from(h.buffer_offset[index]);
-        self.ram.write_at(start, pixels)?;
+        put(&field::BUFFER_SEQ[index], &WRITING.to_le_bytes())?;
+        let start = h.buffer_offset[index] as usize;
+        put(&(start..start + pixels.len()), pixels)?;
         let mut next = h.sequence.wrapping_add(1);
         if next == 0 || next == WRITING {
             next = 1;
         }
-        self.put(&field::CAPTURE_US[index], &capture_us.to_le_bytes())?;
-        self.put(&field::BUFFER_SEQ[index], &next.to_le_bytes())?;
-        self.put(&field::READY, &(index as u32).to_le_bytes())?;
-        self.put(&field::SEQUENCE, &next.to_le_bytes())?;
+        put(&field::CAPTURE_US[index], &capture_us.to_le_bytes())?;
+        put(&field::BUFFER_SEQ[index], &next.to_le_bytes())?;
+        put(&field::READY, &(index as u32).to_le_bytes())?;
+        put(&field::SEQUENCE, &next.to_le_bytes())?;
         h.capture_us[index] = capture_us;
         h.buffer_seq[index] = next;
         h.ready = index as u32;
         h.sequence = next;
         self.header = h;
         Ok(next)
+    }
+}
+
+/// A QEMU car's RAM file as a window: offsets are relative to [`FRAME_WINDOW_OFFSET`].
+impl WindowWriter for SharedRam {
+    fn write_window(&mut self, offset: usize, bytes: &[u8]) -> Result<(), FrameWriteError> {
+        self.write_at(FRAME_WINDOW_OFFSET + offset as u64, bytes)
+            .map_err(|e| FrameWriteError(e.to_string()))
+    }
+}
+
+/// The writer of one car's window in its RAM file.
+#[derive(Debug)]
+pub struct RamWindow {
+    ram: SharedRam,
+    publisher: WindowPublisher,
+}
+
+impl RamWindow {
+    /// Writes a fresh header (nothing published) for `geometry` into the RAM file.
+    pub fn init(mut ram: SharedRam, geometry: &FrameGeometry) -> Result<Self, FeedError> {
+        let publisher = WindowPublisher::init(&mut ram, geometry)?;
+        Ok(RamWindow { ram, publisher })
+    }
+
+    /// The header as last written.
+    pub fn header(&self) -> &HeaderRepr {
+        self.publisher.header()
+    }
+
+    /// Publishes `pixels` (one packed frame) as the next frame; returns its sequence.
+    pub fn publish(&mut self, pixels: &[u8], capture_us: u64) -> Result<u32, FeedError> {
+        self.publisher.publish(&mut self.ram, pixels, capture_us)
     }
 }
 
@@ -305,7 +344,7 @@ pub fn find_car_ram(car: u8, run: Option<&Path>) -> Result<PathBuf, FindError> {
     best.map(|(_, p)| p).ok_or_else(none)
 }
 
-/// Settings of a [`CameraFeed`].
+/// Settings of the world's camera feed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FeedConfig {
     /// Frames per second per car.
@@ -326,149 +365,13 @@ impl Default for FeedConfig {
     }
 }
 
-/// Counters of a running feed.
-#[derive(Debug, Default)]
-struct FeedCounters {
-    frames: AtomicU64,
-    late: AtomicU64,
-    render_us: AtomicU64,
-}
-
-/// What a feed has done so far.
+/// What the world's camera has done so far.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct FeedStats {
     /// Frames published (all cars).
     pub frames: u64,
-    /// Rounds that started later than their slot (the host did not keep the rate).
-    pub late_rounds: u64,
-    /// Time spent rendering and writing, microseconds (all cars).
-    pub busy_us: u64,
-}
-
-/// A thread that renders every car's view at a fixed rate and publishes it into its window.
-/// Dropping it stops the thread.
-#[derive(Debug)]
-pub struct CameraFeed {
-    stop: Arc<AtomicBool>,
-    counters: Arc<FeedCounters>,
-    thread: Option<JoinHandle<()>>,
-}
-
-/// One car fed by a [`CameraFeed`]: its ID and its RAM file.
-#[derive(Debug)]
-pub struct FeedTarget {
-    pub id: u8,
-    pub path: PathBuf,
-    pub window: RamWindow,
-}
-
-impl FeedTarget {
-    /// Creates car `id`'s RAM file at `path` (before its QEMU starts) with an empty window.
-    pub fn create(
-        id: u8,
-        path: PathBuf,
-        ram_len: u64,
-        config: &FeedConfig,
-    ) -> Result<Self, FeedError> {
-        let ram = SharedRam::create(&path, ram_len)?;
-        let g = SyntheticCamera::new(config.camera, 0).geometry();
-        Ok(FeedTarget {
-            id,
-            path,
-            window: RamWindow::init(ram, &g)?,
-        })
-    }
-}
-
-impl CameraFeed {
-    /// Starts feeding `targets`; `poses()` gives every car's pose at the moment of the call.
-    pub fn start(
-        config: FeedConfig,
-        targets: Vec<FeedTarget>,
-        poses: impl Fn() -> Vec<CarPose> + Send + 'static,
-    ) -> io::Result<Self> {
-        let stop = Arc::new(AtomicBool::new(false));
-        let counters = Arc::new(FeedCounters::default());
-        let (s, c) = (stop.clone(), counters.clone());
-        let thread = thread::Builder::new()
-            .name("arena-camera".into())
-            .spawn(move || run_feed(config, targets, poses, &s, &c))?;
-        Ok(CameraFeed {
-            stop,
-            counters,
-            thread: Some(thread),
-        })
-    }
-
-    /// Counters so far.
-    pub fn stats(&self) -> FeedStats {
-        FeedStats {
-            frames: self.counters.frames.load(Ordering::Relaxed),
-            late_rounds: self.counters.late.load(Ordering::Relaxed),
-            busy_us: self.counters.render_us.load(Ordering::Relaxed),
-        }
-    }
-
-    /// Stops the thread and waits for it.
-    pub fn stop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-impl Drop for CameraFeed {
-    fn drop(&mut self) {
-        self.stop();
-    }
-}
-
-fn run_feed(
-    config: FeedConfig,
-    mut targets: Vec<FeedTarget>,
-    poses: impl Fn() -> Vec<CarPose>,
-    stop: &AtomicBool,
-    counters: &FeedCounters,
-) {
-    let mut cams: Vec<SyntheticCamera> = targets
-        .iter()
-        .map(|t| SyntheticCamera::new(config.camera, config.seed.wrapping_add(u64::from(t.id))))
-        .collect();
-    let Some(first) = cams.first() else {
-        return;
-    };
-    let mut frame = vec![0u8; first.geometry().frame_len()];
-    let period = Duration::from_secs_f64(1.0 / config.fps.clamp(0.1, 1000.0));
-    let started = Instant::now();
-    let mut next = started;
-    while !stop.load(Ordering::Relaxed) {
-        let now = Instant::now();
-        if now < next {
-            thread::sleep((next - now).min(Duration::from_millis(20)));
-            continue;
-        }
-        if now > next + period {
-            counters.late.fetch_add(1, Ordering::Relaxed);
-            next = now;
-        }
-        next += period;
-        let all = poses();
-        let t0 = Instant::now();
-        for (t, cam) in targets.iter_mut().zip(cams.iter_mut()) {
-            let Some(viewer) = all.iter().find(|p| p.id == t.id) else {
-                continue;
-            };
-            let capture_us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
-            if cam.render(viewer, &all, &mut frame).is_ok()
-                && t.window.publish(&frame, capture_us).is_ok()
-            {
-                counters.frames.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-        let busy = u64::try_from(t0.elapsed().as_micros()).unwrap_or(u64::MAX);
-        counters.render_us.fetch_add(busy, Ordering::Relaxed);
-    }
+    /// Frames that could not be rendered or written.
+    pub failed: u64,
 }
 
 /// The scene of the benchmarks: a car at the near end looking down the arena at four others.
@@ -499,6 +402,8 @@ pub fn bench_scene() -> (CarPose, Vec<CarPose>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::SyntheticCamera;
+    use std::sync::atomic::{AtomicU64, Ordering};
     use vision::frame::FrameWindow;
 
     #[test]
@@ -587,34 +492,4 @@ mod tests {
     }
 
     static NEXT: AtomicU64 = AtomicU64::new(0);
-
-    #[test]
-    fn feed_publishes_at_its_rate_and_stops() {
-        let dir = tempfile_dir();
-        let config = FeedConfig {
-            fps: 5.0,
-            ..FeedConfig::default()
-        };
-        let len = FRAME_WINDOW_OFFSET + WINDOW_LEN as u64;
-        let targets = vec![
-            FeedTarget::create(0, dir.join("a"), len, &config).unwrap(),
-            FeedTarget::create(1, dir.join("b"), len, &config).unwrap(),
-        ];
-        let (_, cars) = bench_scene();
-        let mut feed = CameraFeed::start(config, targets, move || cars.clone()).unwrap();
-        thread::sleep(Duration::from_millis(700));
-        feed.stop();
-        // Four rounds at most in 0.7 s at 5 fps; a debug build renders slowly, so at least one.
-        let s = feed.stats();
-        assert!((2..=8).contains(&s.frames), "{s:?}");
-        let frames = s.frames;
-        thread::sleep(Duration::from_millis(300));
-        assert_eq!(feed.stats().frames, frames);
-        let a = read_window_frame(&dir.join("a")).unwrap();
-        let b = read_window_frame(&dir.join("b")).unwrap();
-        assert!(a.ticket.sequence >= 1 && b.ticket.sequence >= 1);
-        // Car 0 looks down the arena at the others.
-        assert!(!a.detect().unwrap().blobs().is_empty());
-        let _ = std::fs::remove_dir_all(&dir);
-    }
 }

@@ -1,13 +1,15 @@
 //! The simulated world of the ALMC testbed: the radio medium model ([`radio_medium`]),
-//! simulations of cars and the ground station talking over it ([`radio_sim`]), and a
-//! real-time hub that runs the medium between socket-attached radios ([`hub`]), a world of
-//! QEMU cars ([`world`]), and experiments played in it ([`experiment`], [`runner`],
-//! [`metrics`], [`plot`]).
+//! simulations of cars and the ground station talking over it ([`radio_sim`]), a real-time
+//! hub that runs the medium between socket-attached radios ([`hub`]), the world that owns time
+//! and runs every car's firmware on a car engine ([`world`], [`engine`]: the soft core's
+//! model in virtual time, or QEMU in real time), and experiments played in it
+//! ([`experiment`], [`runner`], [`metrics`], [`plot`]).
 
 #![forbid(unsafe_code)]
 
 pub mod camera;
 pub mod camera_feed;
+pub mod engine;
 pub mod experiment;
 pub mod hub;
 pub mod metrics;

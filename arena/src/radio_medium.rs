@@ -322,6 +322,25 @@ impl RadioMedium {
         out
     }
 
+    /// Moves the bytes queued towards `node`'s host that leave its UART by `until` into
+    /// `out`, each with its time, without stepping the medium: a byte already queued keeps its
+    /// time, and bytes delivered later queue behind it, so `until` may lie ahead of
+    /// [`RadioMedium::now`].
+    pub fn take_rx(&mut self, node: NodeId, until: Nanos, out: &mut Vec<(Nanos, u8)>) {
+        if let Some(n) = self.nodes.get_mut(node.0) {
+            while let Some(&(t, b)) = n.rx.front() {
+                if t > until {
+                    break;
+                }
+                out.push((t, b));
+                n.rx.pop_front();
+            }
+            while n.rx_marks.front().is_some_and(|t| *t <= until) {
+                n.rx_marks.pop_front();
+            }
+        }
+    }
+
     /// When the last byte now queued towards `node`'s host will have left its UART.
     pub fn rx_idle_at(&self, node: NodeId) -> Option<Nanos> {
         self.nodes.get(node.0)?.rx.back().map(|(t, _)| *t)

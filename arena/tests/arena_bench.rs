@@ -1,152 +1,222 @@
-//! How many QEMU cars run in real time on this machine: for each N, boots N cars (idle, no
-//! maneuver), waits for their bring-up, then measures over a window the STREAM frame rate
-//! sent by each emulated LBC and received by each firmware (console stats), the radio state
-//! rate heard by the ground station and the tracking fix rate. Ignored by default:
+//! Arena benchmarks, ignored by default (`cargo xtask bench --only arena` runs them):
 //!
-//! `ARENA_BENCH_N=1,2,4,8 cargo test -p arena --release --test arena_bench -- --ignored --nocapture`
+//! - `virtual_time_speed`: N cars on the soft core's model (`ARENA_BENCH_N`, default
+//!   4,16,64,100; `ARENA_BENCH_THREADS`, default 2), in groups of up to 8 driving a wedge
+//!   formation behind their leader; world seconds per wall second during bring-up and during
+//!   the maneuver, and the mean processor load.
+//! - `state_delivery`: N idle cars (`ARENA_DELIVERY_N`, default 4,12,16) after bring-up; each
+//!   car's state broadcasts heard by the ground station over the ones its firmware sent, next
+//!   to the radio model's figure for the same schedule and car count (`radio_sim`).
+//! - `qemu_realtime_capacity`: N QEMU cars in real time (`ARENA_QEMU_N`, default 1,4,8,16):
+//!   whether each keeps its 30 Hz stream and answers its console.
+//!
+//! Lines starting with `figures:` are what `cargo xtask bench` reads.
 
-use arena::world::{CarSpec, World, WorldConfig};
+use arena::radio_sim::{run_state_experiment, StateExperiment};
+use arena::world::{CarSpec, EngineKind, World, WorldConfig};
 use lbc_emu::Pose;
+use maneuvers::{ManeuverParams, Shape};
 use std::time::{Duration, Instant};
-use ubc_app::program::console::{flags, Reply, Request};
+use ubc_app::program::console::{flags, Reply, Request, StatsPage};
 
-const WINDOW: Duration = Duration::from_secs(10);
-
-/// CPU seconds (user + system) used by process `pid` so far.
-fn cpu_s(pid: u32) -> f64 {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-    // Fields after the command name (which ends with the last ')'): utime is the 12th, stime the 13th.
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let f: Vec<f64> = rest
-        .split_whitespace()
-        .map(|v| v.parse().unwrap_or(0.0))
-        .collect();
-    (f.get(11).copied().unwrap_or(0.0) + f.get(12).copied().unwrap_or(0.0)) / 100.0
+fn list(var: &str, default: &str) -> Vec<usize> {
+    std::env::var(var)
+        .unwrap_or_else(|_| default.into())
+        .split(',')
+        .filter_map(|s| s.trim().parse().ok())
+        .collect()
 }
 
-/// The firmware's STREAM frame count, when it was asked (mid-way through the round trip),
-/// and the round trip.
-fn firmware_streams(world: &World, id: u8) -> Option<(u64, Instant, Duration)> {
-    let sent = Instant::now();
-    match world.request(id, &Request::Stats(1), Duration::from_secs(5)) {
-        Ok(Reply::Stats { values, .. }) => {
-            let rtt = sent.elapsed();
-            values.first().map(|&v| (u64::from(v), sent + rtt / 2, rtt))
-        }
-        _ => None,
-    }
-}
-
-fn cars(n: usize) -> Vec<CarSpec> {
+/// `n` cars on a grid filling the arena, facing up.
+fn grid(n: usize) -> Vec<CarSpec> {
+    let cols = (n as f64).sqrt().ceil() as usize;
+    let rows = n.div_ceil(cols);
     (0..n)
-        .map(|i| CarSpec {
-            id: u8::try_from(i + 1).unwrap_or(1),
-            start: Pose {
-                x_mm: 150.0 + 300.0 * (i % 4) as f64,
-                y_mm: 200.0 + 400.0 * (i / 4) as f64,
-                heading_rad: 1.571,
-            },
+        .map(|i| {
+            let (c, r) = (i % cols, i / cols);
+            CarSpec::new(
+                u8::try_from(i + 1).unwrap_or(126),
+                Pose {
+                    x_mm: 1500.0 * (c as f64 + 0.5) / cols as f64,
+                    y_mm: 1000.0 * (r as f64 + 0.5) / rows as f64,
+                    heading_rad: std::f64::consts::FRAC_PI_2,
+                },
+            )
         })
         .collect()
 }
 
-fn bench(n: usize) -> String {
-    let elf = qemu_harness::firmware_elf().expect("firmware ELF");
-    let cfg = WorldConfig::new(elf, cars(n));
-    let t_boot = Instant::now();
-    let world = match World::start(&cfg) {
-        Ok(w) => w,
-        Err(e) => return format!("| {n:>2} | world failed: {e} |"),
-    };
-    let deadline = Instant::now() + Duration::from_secs(90);
+fn world(engine: EngineKind, cars: Vec<CarSpec>, threads: usize) -> World {
+    let elf = engine.default_firmware().expect("firmware ELF");
+    let mut cfg = WorldConfig::new(elf, cars);
+    cfg.engine = engine;
+    cfg.threads = threads;
+    World::start(&cfg).expect("world starts")
+}
+
+/// Polls every car until its program runs with a valid pose; the number that did.
+fn bring_up(w: &mut World, limit: Duration) -> usize {
+    let deadline = w.now() + limit;
+    let ids = w.ids().to_vec();
     let mut up = 0;
-    for &id in world.ids() {
+    for id in ids {
         loop {
-            if let Ok(Reply::Status(s)) =
-                world.request(id, &Request::Status, Duration::from_secs(5))
-            {
+            if let Ok(Reply::Status(s)) = w.request(id, &Request::Status, Duration::from_secs(5)) {
                 if s.phase == 2 && s.flags & flags::POSE_VALID != 0 {
                     up += 1;
                     break;
                 }
             }
-            if Instant::now() > deadline {
+            if w.now() > deadline {
                 break;
             }
-            std::thread::sleep(Duration::from_millis(200));
+            w.run_for(Duration::from_millis(200));
         }
     }
-    let bringup = t_boot.elapsed().as_secs_f64();
-    let fw0: Vec<Option<(u64, Instant, Duration)>> = world
-        .ids()
-        .iter()
-        .map(|&id| firmware_streams(&world, id))
-        .collect();
-    let pids: Vec<u32> = world.qemu_pids().iter().map(|p| p.1).collect();
-    let qemu_cpu0: f64 = pids.iter().map(|&p| cpu_s(p)).sum();
-    let own_cpu0 = cpu_s(std::process::id());
-    let a = world.truth();
-    let t0 = Instant::now();
-    std::thread::sleep(WINDOW);
-    let b = world.truth();
-    let dt_lbc = t0.elapsed().as_secs_f64();
-    let qemu_cpu = 100.0 * (pids.iter().map(|&p| cpu_s(p)).sum::<f64>() - qemu_cpu0) / dt_lbc;
-    let own_cpu = 100.0 * (cpu_s(std::process::id()) - own_cpu0) / dt_lbc;
-    let fw1: Vec<Option<(u64, Instant, Duration)>> = world
-        .ids()
-        .iter()
-        .map(|&id| firmware_streams(&world, id))
-        .collect();
-    let rate = |f: &dyn Fn(usize) -> u64, dt: f64| {
-        let r: Vec<f64> = (0..n).map(|k| f(k) as f64 / dt).collect();
-        let min = r.iter().copied().fold(f64::INFINITY, f64::min);
-        let mean = r.iter().sum::<f64>() / n as f64;
-        (min, mean)
-    };
-    let lbc = rate(&|k| b[k].lbc.stream_frames - a[k].lbc.stream_frames, dt_lbc);
-    let fixes = rate(&|k| b[k].fixes_delivered - a[k].fixes_delivered, dt_lbc);
-    let states = rate(&|k| b[k].states_heard - a[k].states_heard, dt_lbc);
-    let fw_rates: Vec<f64> = (0..n)
-        .map(|k| match (fw0[k], fw1[k]) {
-            (Some((x, tx, _)), Some((y, ty, _))) => {
-                y.saturating_sub(x) as f64 / ty.duration_since(tx).as_secs_f64()
+    up
+}
+
+fn mean_load(w: &World) -> f64 {
+    let n = w.ids().len();
+    (0..n)
+        .filter_map(|k| w.core_load(k))
+        .map(|l| l.load())
+        .sum::<f64>()
+        / n as f64
+}
+
+#[test]
+#[ignore = "benchmark: minutes; run explicitly"]
+fn virtual_time_speed() {
+    let threads = list("ARENA_BENCH_THREADS", "2")
+        .first()
+        .copied()
+        .unwrap_or(2);
+    println!("| cars | threads | bring-up: world s / wall s | formation: world s / wall s | cars up | mean processor load |");
+    println!("|---:|---:|---:|---:|---:|---:|");
+    for n in list("ARENA_BENCH_N", "4,16,64,100") {
+        let mut w = world(EngineKind::Iss, grid(n), threads);
+        let t = Instant::now();
+        let up = bring_up(&mut w, Duration::from_secs(60));
+        let bring = w.now().as_secs_f64() / t.elapsed().as_secs_f64();
+        let ids = w.ids().to_vec();
+        for group in ids.chunks(8) {
+            let leader = group[0];
+            let p = ManeuverParams::Formation {
+                shape: Shape::Wedge,
+                leader,
+                slot: None,
+                spacing_units: 60,
+                speed_mm_s: 100,
+            };
+            for &id in group.iter().skip(1).chain(std::iter::once(&leader)) {
+                let _ = w.request(id, &Request::GroupStart(p), Duration::from_secs(5));
             }
-            _ => 0.0,
-        })
-        .collect();
-    let fw = (
-        fw_rates.iter().copied().fold(f64::INFINITY, f64::min),
-        fw_rates.iter().sum::<f64>() / n as f64,
-    );
-    let rtt_max = fw0
-        .iter()
-        .chain(&fw1)
-        .filter_map(|r| r.map(|(_, _, rtt)| rtt.as_secs_f64() * 1000.0))
-        .fold(0.0, f64::max);
-    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    let load = load.split_whitespace().next().unwrap_or("?").to_owned();
-    drop(world);
-    format!(
-        "| {n:>2} | {up:>2}/{n:<2} | {bringup:>5.1} | {:>5.1} / {:>5.1} | {:>5.1} / {:>5.1} | {:>5.1} / {:>5.1} | {:>5.1} / {:>5.1} | {rtt_max:>5.0} | {qemu_cpu:>5.0} | {own_cpu:>4.0} | {load} |",
-        lbc.0, lbc.1, fw.0, fw.1, fixes.0, fixes.1, states.0, states.1
-    )
+            let _ = w.request(
+                leader,
+                &Request::GroupWaypoint { x: 300, y: 700 },
+                Duration::from_secs(5),
+            );
+        }
+        let window = Duration::from_secs(10);
+        let (w0, t0) = (w.now(), Instant::now());
+        w.run_until(w0 + window);
+        let speed = window.as_secs_f64() / t0.elapsed().as_secs_f64();
+        let load = mean_load(&w);
+        println!(
+            "| {n} | {threads} | {bring:.1} | {speed:.2} | {up}/{n} | {:.1} % |",
+            100.0 * load
+        );
+        println!("figures: mode=speed cars={n} threads={threads} bringup_speed={bring:.3} speed={speed:.3} up={up} load={load:.4}");
+    }
+}
+
+/// States sent by car `id`'s firmware so far (console statistics).
+fn states_sent(w: &mut World, id: u8) -> Option<u64> {
+    let page = StatsPage::Radio;
+    let i = page.counters().iter().position(|c| *c == "states_sent")?;
+    match w.request(id, &Request::Stats(page as u8), Duration::from_secs(5)) {
+        Ok(Reply::Stats { values, .. }) => values.get(i).map(|&v| u64::from(v)),
+        _ => None,
+    }
+}
+
+#[test]
+#[ignore = "benchmark: minutes; run explicitly"]
+fn state_delivery() {
+    println!("| cars | arena: heard / sent at the ground station (min car / all) | radio model, same schedule (slotted, follow lowest ID): all receivers | difference, points |");
+    println!("|---:|---:|---:|---:|");
+    for n in list("ARENA_DELIVERY_N", "4,12,16") {
+        let mut w = world(EngineKind::Iss, grid(n), 2);
+        bring_up(&mut w, Duration::from_secs(60));
+        w.run_for(Duration::from_secs(2));
+        let ids = w.ids().to_vec();
+        let sent0: Vec<Option<u64>> = ids.iter().map(|&id| states_sent(&mut w, id)).collect();
+        let heard0: Vec<u64> = w.truth().iter().map(|t| t.states_heard).collect();
+        w.run_for(Duration::from_secs(30));
+        let heard1: Vec<u64> = w.truth().iter().map(|t| t.states_heard).collect();
+        let sent1: Vec<Option<u64>> = ids.iter().map(|&id| states_sent(&mut w, id)).collect();
+        // The counter requests themselves take a moment: count the heard states over the
+        // same span as the sent ones (the last request answered before the window ended).
+        let mut total = (0u64, 0u64);
+        let mut worst = f64::INFINITY;
+        for k in 0..n {
+            let (Some(a), Some(b)) = (sent0[k], sent1[k]) else {
+                continue;
+            };
+            let sent = b.saturating_sub(a);
+            let heard = heard1[k] - heard0[k];
+            total.0 += heard.min(sent);
+            total.1 += sent;
+            if sent > 0 {
+                worst = worst.min(heard as f64 / sent as f64);
+            }
+        }
+        let arena = total.0 as f64 / total.1.max(1) as f64;
+        let model = run_state_experiment(&StateExperiment::new(n, true, 30_000_000_000, 1))
+            .delivery_ratio();
+        println!(
+            "| {n} | {:.2} % / {:.2} % | {:.2} % | {:+.2} |",
+            100.0 * worst,
+            100.0 * arena,
+            100.0 * model,
+            100.0 * (arena - model)
+        );
+        println!(
+            "figures: mode=delivery cars={n} arena={arena:.5} worst={worst:.5} model={model:.5}"
+        );
+    }
 }
 
 #[test]
 #[ignore = "benchmark: minutes of QEMU; run explicitly"]
-fn realtime_capacity() {
-    if qemu_harness::skip_qemu_tests("realtime_capacity") {
+fn qemu_realtime_capacity() {
+    if qemu_harness::skip_qemu_tests("qemu_realtime_capacity") {
         return;
     }
-    let ns: Vec<usize> = std::env::var("ARENA_BENCH_N")
-        .unwrap_or_else(|_| "1,2,4,8,12,16".into())
-        .split(',')
-        .filter_map(|s| s.trim().parse().ok())
-        .collect();
-    println!("| N | up | boot+bring-up s | LBC stream Hz min / mean | firmware stream Hz min / mean | tracking fixes Hz min / mean | radio states Hz min / mean | console RTT max ms | QEMU CPU % (all) | engine+hub CPU % | load1 |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    for n in ns {
-        let line = bench(n);
-        println!("{line}");
+    println!("| N | up | LBC stream Hz min | tracking fixes Hz min | radio states heard Hz per car min / mean |");
+    println!("|---:|---:|---:|---:|---:|");
+    for n in list("ARENA_QEMU_N", "1,4,8,16") {
+        let mut w = world(EngineKind::Qemu, grid(n), 1);
+        let up = bring_up(&mut w, Duration::from_secs(90));
+        let a = w.truth();
+        let t0 = w.now();
+        w.run_for(Duration::from_secs(10));
+        let b = w.truth();
+        let dt = (w.now() - t0).as_secs_f64();
+        let rate = |f: &dyn Fn(usize) -> u64| {
+            let r: Vec<f64> = (0..n).map(|k| f(k) as f64 / dt).collect();
+            (
+                r.iter().copied().fold(f64::INFINITY, f64::min),
+                r.iter().sum::<f64>() / n as f64,
+            )
+        };
+        let lbc = rate(&|k| b[k].lbc.stream_frames - a[k].lbc.stream_frames);
+        let fixes = rate(&|k| b[k].fixes_delivered - a[k].fixes_delivered);
+        let states = rate(&|k| b[k].states_heard - a[k].states_heard);
+        println!(
+            "| {n} | {up}/{n} | {:.1} | {:.1} | {:.1} / {:.1} |",
+            lbc.0, fixes.0, states.0, states.1
+        );
     }
 }

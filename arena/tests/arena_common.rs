@@ -55,7 +55,7 @@ pub fn run_and_check(toml: &str, tag: &str) -> (Summary, Value) {
 /// Runs `toml` with the real firmware, checks every output parses, returns them.
 pub fn run_full(toml: &str, tag: &str) -> Outputs {
     let exp = Experiment::parse(toml).expect("experiment parses");
-    let elf = qemu_harness::firmware_elf().expect("firmware ELF");
+    let elf = exp.engine.default_firmware().expect("firmware ELF");
     let out: PathBuf =
         std::env::temp_dir().join(format!("arena-test-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);

@@ -1,27 +1,29 @@
-//! One QEMU car in a world: the tracker feeds its LBC at 30 Hz, the console answers over the
-//! radio, and a panic with the world alive still leaves no QEMU or socket behind.
+//! One car in a world, on each engine: the tracker feeds its LBC at 30 Hz, the console answers
+//! over the radio, and (QEMU) a panic with the world alive still leaves no QEMU or socket
+//! behind. Bad worlds are refused with the reason.
 
 #[path = "arena_common.rs"]
 mod common;
 
-use arena::world::{CarSpec, TrackingParams, World, WorldConfig, WorldError};
+use arena::world::{CarSpec, EngineKind, TrackingParams, World, WorldConfig, WorldError};
 use lbc_emu::Pose;
 use std::time::Duration;
 use ubc_app::program::console::{Reply, Request};
 
-fn one_car() -> WorldConfig {
-    let elf = qemu_harness::firmware_elf().expect("firmware ELF");
+fn one_car(engine: EngineKind) -> WorldConfig {
+    let elf = engine.default_firmware().expect("firmware ELF");
     let mut cfg = WorldConfig::new(
         elf,
-        vec![CarSpec {
-            id: 9,
-            start: Pose {
+        vec![CarSpec::new(
+            9,
+            Pose {
                 x_mm: 500.0,
                 y_mm: 700.0,
                 heading_rad: 0.0,
             },
-        }],
+        )],
     );
+    cfg.engine = engine;
     cfg.tracking = TrackingParams {
         drop: 0.5,
         ..TrackingParams::default()
@@ -29,31 +31,57 @@ fn one_car() -> WorldConfig {
     cfg
 }
 
+fn tracking_and_console(world: &mut World, exact: bool) {
+    world.run_for(Duration::from_millis(500));
+    let a = world.truth()[0].clone();
+    world.run_for(Duration::from_secs(2));
+    let b = world.truth()[0].clone();
+    let fixes = (b.fixes_delivered - a.fixes_delivered) + (b.fixes_dropped - a.fixes_dropped);
+    if exact {
+        // Dropped fixes count at the tick, delivered ones 10 ms later: 60 +- 1 in 2 s.
+        assert!(
+            (59..=61).contains(&fixes),
+            "{fixes} fixes in 2 s of world time"
+        );
+    } else {
+        assert!((55..=65).contains(&fixes), "{fixes} fixes in 2 s");
+    }
+    assert!(b.fixes_dropped - a.fixes_dropped > 10, "drops not applied");
+    assert!(b.connected && b.failure.is_none(), "{:?}", b.failure);
+    let moved = (b.pose.x_mm - 500.0).hypot(b.pose.y_mm - 700.0);
+    assert!(moved < 1.0, "an idle car moved {moved} mm");
+    let status = world.request(9, &Request::Status, Duration::from_secs(8));
+    match status {
+        Ok(Reply::Status(s)) => assert_eq!(s.car_id, 9),
+        other => panic!("status: {other:?}"),
+    }
+    assert!(matches!(
+        world.request(0, &Request::Status, Duration::from_secs(1)),
+        Err(WorldError::BadCar { id: 0 })
+    ));
+}
+
 #[test]
-fn tracking_console_and_cleanup_after_a_panic() {
-    if qemu_harness::skip_qemu_tests("tracking_console_and_cleanup_after_a_panic") {
+fn virtual_time_tracking_and_console() {
+    let mut world = World::start(&one_car(EngineKind::Iss)).expect("world starts");
+    assert_eq!(world.engine_name(), "iss");
+    tracking_and_console(&mut world, true);
+    let load = world.core_load(0).expect("the model counts cycles");
+    assert!(load.cycles > 14_000_000, "{load:?}");
+    assert!(load.load() > 0.0 && load.load() < 0.5, "{load:?}");
+    let log = world.firmware_log(9).unwrap();
+    assert!(log.iter().any(|l| l.contains("board=softcore")), "{log:?}");
+}
+
+#[test]
+fn qemu_tracking_console_and_cleanup_after_a_panic() {
+    if qemu_harness::skip_qemu_tests("qemu_tracking_console_and_cleanup_after_a_panic") {
         return;
     }
     let result = std::panic::catch_unwind(|| {
-        let world = World::start(&one_car()).expect("world starts");
-        let a = world.truth()[0];
-        std::thread::sleep(Duration::from_secs(2));
-        let b = world.truth()[0];
-        let fixes = (b.fixes_delivered - a.fixes_delivered) + (b.fixes_dropped - a.fixes_dropped);
-        assert!((55..=65).contains(&fixes), "{fixes} fixes in 2 s");
-        assert!(b.fixes_dropped - a.fixes_dropped > 10, "drops not applied");
-        assert!(b.connected);
-        let moved = (b.pose.x_mm - 500.0).hypot(b.pose.y_mm - 700.0);
-        assert!(moved < 1.0, "an idle car moved {moved} mm");
-        let status = world.request(9, &Request::Status, Duration::from_secs(8));
-        match status {
-            Ok(Reply::Status(s)) => assert_eq!(s.car_id, 9),
-            other => panic!("status: {other:?}"),
-        }
-        assert!(matches!(
-            world.request(0, &Request::Status, Duration::from_secs(1)),
-            Err(WorldError::BadCar { id: 0 })
-        ));
+        let mut world = World::start(&one_car(EngineKind::Qemu)).expect("world starts");
+        assert!(world.paced());
+        tracking_and_console(&mut world, false);
         panic!("leaving with the world alive");
     });
     assert!(result.is_err());
@@ -62,25 +90,22 @@ fn tracking_console_and_cleanup_after_a_panic() {
 
 #[test]
 fn bad_worlds_are_refused() {
-    let mut cfg = one_car_without_firmware();
+    let mut cfg = WorldConfig::new("/nonexistent", Vec::new());
     assert!(matches!(
         World::start(&cfg),
         Err(WorldError::BadCar { id: 0 })
     ));
-    cfg.cars.push(CarSpec {
-        id: 127,
-        start: Pose {
-            x_mm: 0.0,
-            y_mm: 0.0,
-            heading_rad: 0.0,
-        },
-    });
+    cfg.cars.push(CarSpec::new(127, Pose::default()));
     assert!(matches!(
         World::start(&cfg),
         Err(WorldError::BadCar { id: 127 })
     ));
-}
-
-fn one_car_without_firmware() -> WorldConfig {
-    WorldConfig::new("/nonexistent", Vec::new())
+    cfg.cars[0].id = 3;
+    let err = World::start(&cfg).unwrap_err();
+    assert!(
+        matches!(err, WorldError::Iss(_)) && err.to_string().contains("/nonexistent"),
+        "{err}"
+    );
+    cfg.quantum = Duration::ZERO;
+    assert!(matches!(World::start(&cfg), Err(WorldError::BadQuantum(_))));
 }

@@ -51,6 +51,16 @@ pub fn firmware_elf() -> Result<PathBuf, Error> {
     elf_from(FW_ELF_ENV, &["fw", "--board", "qemu_virt"])
 }
 
+/// Path of a prebuilt firmware ELF for the `softcore` board (the soft core's SoC, its
+/// Verilated RTL and its model); when unset, [`softcore_elf`] builds one.
+pub const SOFTCORE_ELF_ENV: &str = "VTB_FIRMWARE";
+
+/// The firmware ELF for the `softcore` board: `VTB_FIRMWARE` if set, else the path printed on
+/// the last line of `cargo xtask fw --board softcore`, run from the workspace root.
+pub fn softcore_elf() -> Result<PathBuf, Error> {
+    elf_from(SOFTCORE_ELF_ENV, &["fw", "--board", "softcore"])
+}
+
 /// The firmware ELF for `qemu_virt` in UART echo test mode, which the driver acceptance
 /// tests need: `UBC_FW_ECHO_ELF` if set, else the last line printed by
 /// `cargo xtask fw --board qemu_virt --echo-test`.

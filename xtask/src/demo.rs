@@ -1,12 +1,13 @@
-//! `cargo xtask demo`: four cars in QEMU form a wedge behind a leader, break up to the corners
-//! of the arena and meet again by rendezvous.
+//! `cargo xtask demo`: four cars form a wedge behind a leader, break up to the corners of the
+//! arena and meet again by rendezvous.
 //!
-//! The demo builds the firmware and the `almc` tool, then plays
+//! The demo builds the firmware for the soft core and the `almc` tool, then plays
 //! `experiments/demo-formation-rendezvous.toml` with `almc experiment run`, the same runner a
-//! researcher uses: every car is the real firmware in its own QEMU with an emulated lower
-//! board, an overhead tracker and a shared radio channel. Progress is printed each second;
-//! the run ends with the summary and the path of the trajectory plot. The outputs are kept
-//! under `target/demo/`.
+//! researcher uses: every car is the real firmware on the soft core's cycle-accurate model, in
+//! virtual time, with an emulated lower board, an overhead tracker and a shared radio channel.
+//! Progress is printed each second of world time; the run ends with the summary and the path
+//! of the trajectory plot. The outputs are kept under `target/demo/`; the same file and seed
+//! give the same outputs on any machine.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -14,7 +15,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 
-use crate::{fw, install, stage, workspace_root};
+use crate::{fw, stage, workspace_root};
 
 /// The experiment the demo plays, relative to the workspace root.
 const EXPERIMENT: &str = "experiments/demo-formation-rendezvous.toml";
@@ -27,10 +28,9 @@ fn target_dir() -> PathBuf {
 
 pub fn run() -> Result<()> {
     let started = Instant::now();
-    install::ensure_qemu()?;
 
     stage("build the firmware and the almc tool");
-    let elf = fw::build("qemu_virt", true)?;
+    let elf = fw::build("softcore", true)?;
     crate::test::cargo(&["build", "--quiet", "-p", "almc"])?;
     let almc = target_dir().join("debug/almc");
     let experiment = workspace_root().join(EXPERIMENT);
@@ -50,6 +50,7 @@ pub fn run() -> Result<()> {
         .arg(&elf)
         .arg("--out")
         .arg(&out)
+        .args(["--engine", "iss", "--threads", "2"])
         .current_dir(workspace_root())
         .status()
         .context("running almc experiment run")?;
@@ -63,6 +64,7 @@ pub fn run() -> Result<()> {
         Some(2) => println!(
             "demo: the run ended, but not every phase completed or cars came too close (see the summary above)"
         ),
+        Some(3) => println!("demo: a car's firmware stopped (see the summary above)"),
         _ => bail!("almc experiment run failed ({status})"),
     }
     println!(

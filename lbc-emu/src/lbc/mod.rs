@@ -142,6 +142,8 @@ pub enum LogEvent {
     Suppressed(LbcMessage),
     /// The LBC restarted (INIT is logged as a command instead).
     Reset,
+    /// The world cut the drive (the upper board died).
+    EmergencyStop,
 }
 
 impl fmt::Display for LogEvent {
@@ -153,6 +155,7 @@ impl fmt::Display for LogEvent {
             LogEvent::Sent(m) => write!(f, "-> {}", describe(m)),
             LogEvent::Suppressed(m) => write!(f, "-x suppressed {}", describe(m)),
             LogEvent::Reset => write!(f, "** spontaneous reset"),
+            LogEvent::EmergencyStop => write!(f, "** emergency stop"),
         }
     }
 }
@@ -406,6 +409,11 @@ impl Lbc {
         }
     }
 
+    /// The other end of the UART changed (a client left or another one attached): the bytes
+    /// already received are parsed now, and a message left unfinished is dropped, so that the
+    /// next sender starts on a clean line instead of completing someone else's half frame.
+    pub fn line_break(&mut self) {}
+
     /// Runs the firmware and the physics up to `t_us`.
     pub fn step_until(&mut self, t_us: u64) {
         loop {
@@ -507,6 +515,17 @@ impl Lbc {
     /// Restarts the LBC as after a power glitch (what spontaneous-reset faults do).
     pub fn reset(&mut self) {
         self.spontaneous_reset();
+    }
+
+    /// Cuts the drive as a lab's emergency stop does when the upper board dies: the drive is
+    /// disabled and every motion target dropped, so the vehicle rolls to a stop; the LBC keeps
+    /// answering commands (a later DREN would drive again).
+    pub fn emergency_stop(&mut self) {
+        self.abort_calibration();
+        self.fw.drive_enabled = false;
+        self.fw.motion = Motion::Idle;
+        self.fw.target_v = 0.0;
+        self.log(LogEvent::EmergencyStop);
     }
 
     // ----- observation ------------------------------------------------------------------------

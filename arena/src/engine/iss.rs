@@ -1,0 +1,292 @@
+//! The virtual-time engine: every car's firmware ELF (the `softcore` board build) runs on
+//! `soc-model`, the soft core's cycle-accurate SoC model, so a car's clock is its cycle count
+//! at [`CLOCK_HZ`]. All cars live in this process and are stepped a quantum at a time by a
+//! fixed pool of threads; each car only touches its own state inside a quantum, so the result
+//! is the same for any number of threads.
+
+use super::{
+    CarEngine, CarIo, CoreLoad, Failure, FailureKind, FrameWriteError, Nanos, WindowWriter,
+};
+use qemu_harness::{LineDecoder, LogFormat};
+use rayon::prelude::*;
+use soc_model::{Halt, Output, Port, Soc, Stamped, CLOCK_HZ};
+use std::collections::HashMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Console bytes kept per car for its firmware log (the oldest are dropped beyond this).
+const MAX_CONSOLE: usize = 1 << 20;
+
+/// The cycle at which something that happens at world time `ns` is seen (rounded up).
+pub fn cycle_at(ns: Nanos) -> u64 {
+    let c = (u128::from(ns) * u128::from(CLOCK_HZ)).div_ceil(1_000_000_000);
+    u64::try_from(c).unwrap_or(u64::MAX)
+}
+
+/// The last cycle that has ended by world time `ns` (rounded down).
+pub fn cycle_by(ns: Nanos) -> u64 {
+    let c = u128::from(ns) * u128::from(CLOCK_HZ) / 1_000_000_000;
+    u64::try_from(c).unwrap_or(u64::MAX)
+}
+
+/// The world time of cycle `cycle` (rounded down).
+pub fn time_of(cycle: u64) -> Nanos {
+    let t = u128::from(cycle) * 1_000_000_000 / u128::from(CLOCK_HZ);
+    u64::try_from(t).unwrap_or(u64::MAX)
+}
+
+/// Why the engine could not start.
+#[derive(Debug)]
+pub enum IssError {
+    /// The firmware file could not be read.
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The firmware file is not a loadable image for the soft core.
+    Load { path: PathBuf, reason: String },
+    /// The firmware's defmt table could not be read.
+    LogTable { path: PathBuf, reason: String },
+    /// The worker threads could not be started.
+    Threads(String),
+}
+
+impl fmt::Display for IssError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            IssError::Read { path, source } => {
+                write!(f, "cannot read firmware {}: {source}", path.display())
+            }
+            IssError::Load { path, reason } => write!(
+                f,
+                "{} is not a softcore firmware image: {reason} (build it with `cargo xtask fw --board softcore`)",
+                path.display()
+            ),
+            IssError::LogTable { path, reason } => {
+                write!(f, "cannot read the log table of {}: {reason}", path.display())
+            }
+            IssError::Threads(e) => write!(f, "cannot start the engine's threads: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for IssError {}
+
+/// One car on the model.
+struct IssCar {
+    soc: Soc,
+    out: Vec<Stamped>,
+    console: Vec<u8>,
+    log_format: Arc<LogFormat>,
+    failure: Option<Failure>,
+    /// World time up to which the car has run.
+    ran_to: Nanos,
+}
+
+impl IssCar {
+    fn advance(&mut self, until: Nanos, io: &mut CarIo) {
+        if self.failure.is_some() {
+            io.lbc_in.clear();
+            io.radio_in.clear();
+            return;
+        }
+        for (port, bytes) in [(Port::Lbc, &mut io.lbc_in), (Port::Radio, &mut io.radio_in)] {
+            for (t, b) in bytes.drain(..) {
+                self.soc.send_at(port, cycle_at(t), &[b]);
+            }
+        }
+        self.out.clear();
+        let halt = self.soc.run_until(cycle_by(until), &mut self.out);
+        for s in &self.out {
+            let t = time_of(s.cycle);
+            match s.output {
+                Output::Tx {
+                    port: Port::Lbc,
+                    byte,
+                } => io.lbc_out.push((t, byte)),
+                Output::Tx {
+                    port: Port::Radio,
+                    byte,
+                } => io.radio_out.push((t, byte)),
+                Output::Console(b) => self.console.push(b),
+            }
+        }
+        if self.console.len() > MAX_CONSOLE {
+            let excess = self.console.len() - MAX_CONSOLE / 2;
+            self.console.drain(..excess);
+        }
+        if let Some(h) = halt {
+            let kind = match h {
+                Halt::Exit { value } => FailureKind::Exited { value },
+                Halt::Stuck { pc, reason } => FailureKind::Stuck {
+                    pc,
+                    why: format!("{reason:?}"),
+                },
+            };
+            self.failure = Some(Failure {
+                at: time_of(self.soc.cycle()),
+                kind,
+            });
+        }
+        self.ran_to = until;
+    }
+}
+
+impl WindowWriter for IssCar {
+    fn write_window(&mut self, offset: usize, bytes: &[u8]) -> Result<(), FrameWriteError> {
+        self.soc
+            .write_frame_window(offset, bytes)
+            .map_err(|e| FrameWriteError(format!("{e:?}")))
+    }
+}
+
+/// The virtual-time engine.
+pub struct IssEngine {
+    cars: Vec<IssCar>,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl fmt::Debug for IssEngine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("IssEngine")
+            .field("cars", &self.cars.len())
+            .field(
+                "threads",
+                &self.pool.as_ref().map_or(1, |p| p.current_num_threads()),
+            )
+            .finish()
+    }
+}
+
+/// A firmware image loaded once and shared by the cars that run it.
+struct Image {
+    soc: Soc,
+    log_format: Arc<LogFormat>,
+}
+
+fn load_image(path: &Path) -> Result<Image, IssError> {
+    let bytes = std::fs::read(path).map_err(|source| IssError::Read {
+        path: path.into(),
+        source,
+    })?;
+    let mut soc = Soc::new();
+    soc.load_elf(&bytes).map_err(|e| IssError::Load {
+        path: path.into(),
+        reason: format!("{e}"),
+    })?;
+    let log_format = LogFormat::from_elf_bytes(&bytes, path).map_err(|e| IssError::LogTable {
+        path: path.into(),
+        reason: e.to_string(),
+    })?;
+    Ok(Image {
+        soc,
+        log_format: Arc::new(log_format),
+    })
+}
+
+impl IssEngine {
+    /// Loads `firmware[k]` for car `k` (one load per distinct file) and prepares `threads`
+    /// worker threads (1: the calling thread steps every car).
+    pub fn new(firmware: &[PathBuf], threads: usize) -> Result<Self, IssError> {
+        let mut images: HashMap<&Path, Image> = HashMap::new();
+        let mut cars = Vec::with_capacity(firmware.len());
+        for path in firmware {
+            if !images.contains_key(path.as_path()) {
+                images.insert(path, load_image(path)?);
+            }
+            let img = &images[path.as_path()];
+            cars.push(IssCar {
+                soc: img.soc.clone(),
+                out: Vec::new(),
+                console: Vec::new(),
+                log_format: img.log_format.clone(),
+                failure: None,
+                ran_to: 0,
+            });
+        }
+        let pool = if threads > 1 {
+            Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("arena-iss-{i}"))
+                    .build()
+                    .map_err(|e| IssError::Threads(e.to_string()))?,
+            )
+        } else {
+            None
+        };
+        Ok(IssEngine { cars, pool })
+    }
+}
+
+impl CarEngine for IssEngine {
+    fn name(&self) -> &'static str {
+        "iss"
+    }
+
+    fn wall_clock(&self) -> bool {
+        false
+    }
+
+    fn advance(&mut self, until: Nanos, io: &mut [CarIo]) {
+        let work = |(car, io): (&mut IssCar, &mut CarIo)| car.advance(until, io);
+        match &self.pool {
+            Some(pool) => pool.install(|| {
+                self.cars
+                    .par_iter_mut()
+                    .zip(io.par_iter_mut())
+                    .for_each(work)
+            }),
+            None => self.cars.iter_mut().zip(io.iter_mut()).for_each(work),
+        }
+    }
+
+    fn failure(&self, k: usize) -> Option<&Failure> {
+        self.cars.get(k)?.failure.as_ref()
+    }
+
+    fn window(&mut self, k: usize) -> Option<&mut dyn WindowWriter> {
+        self.cars.get_mut(k).map(|c| c as &mut dyn WindowWriter)
+    }
+
+    fn core_load(&self, k: usize) -> Option<CoreLoad> {
+        let s = self.cars.get(k)?.soc.stats();
+        Some(CoreLoad {
+            cycles: s.cycles,
+            awake_cycles: s.cycles.saturating_sub(s.sleep_cycles),
+            retired: s.retired,
+        })
+    }
+
+    fn firmware_log(&self, k: usize) -> Vec<String> {
+        let Some(car) = self.cars.get(k) else {
+            return Vec::new();
+        };
+        let mut dec = LineDecoder::new(&car.log_format);
+        let mut lines = Vec::new();
+        dec.push(&car.console, Instant::now(), &mut lines);
+        lines.iter().map(|l| l.to_string()).collect()
+    }
+
+    fn shutdown(&mut self) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn time_and_cycles_round_trip_without_drift() {
+        for ns in [0u64, 1, 67, 68, 1_000_000, 86_806, 3_600_000_000_000] {
+            let c = cycle_at(ns);
+            assert!(time_of(c) >= ns.saturating_sub(68), "{ns}");
+            assert!(cycle_by(ns) <= c);
+            assert!(time_of(cycle_by(ns)) <= ns);
+        }
+        assert_eq!(cycle_by(1_000_000_000), CLOCK_HZ);
+        assert_eq!(cycle_at(1_000_000_000), CLOCK_HZ);
+        assert_eq!(time_of(CLOCK_HZ), 1_000_000_000);
+    }
+}

@@ -1,0 +1,394 @@
+//! Experiments as files: a TOML document names the cars and their start poses, the maneuvers
+//! (one `[maneuver]`, or a sequence of `[[phases]]`) with their parameters, the duration and
+//! the faults, the car engine. [`Experiment::load`] reads and checks one; [`run`] plays it in
+//! a [`World`](crate::world::World) (by default every car on the soft core's model in virtual
+//! time) and writes the results (trajectory CSVs, an event log, a JSON summary and an SVG plot)
+//! to a directory. The format and the metrics are described in `docs/experiments.md`.
+
+use crate::camera_feed::FeedConfig;
+use crate::radio_medium::MediumParams;
+use crate::world::{CarSpec, EngineKind, TrackingParams, WorldConfig, WorldError, MM_PER_UNIT};
+use lbc_emu::{FaultConfig, Pose};
+use maneuvers::{ManeuverParams, Shape};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use ubc_app::program::console::{Status, MAX_POINTS};
+
+pub use crate::runner::{run, CarFailure, CarResult, PhaseResult, Progress, Summary};
+pub use error::{CarProblem, ExperimentError, Invalid};
+
+mod check;
+mod error;
+mod raw;
+use raw::RawExperiment;
+#[cfg(test)]
+mod tests;
+
+/// Largest number of followers in a formation (slots 0..=14 on the wire).
+pub const MAX_FOLLOWERS: usize = 15;
+/// Default time a phase's completion test must hold before it counts as complete, s.
+pub const DEFAULT_HOLD_S: f64 = 2.0;
+/// Default distance at which a formation leader counts as at its waypoint, tracking units.
+pub const DEFAULT_REACH_UNITS: u16 = 16;
+/// Default go-to tolerance: a car this close to its last point has arrived, mm (the
+/// firmware's own arrival radius is 12 units, 30 mm).
+pub const DEFAULT_GOTO_TOLERANCE_MM: f64 = 62.5;
+/// Default formation tolerance: every follower this close to its slot, mm.
+pub const DEFAULT_FORMATION_TOLERANCE_MM: f64 = 75.0;
+/// Default circle tolerance: radius and spacing errors below this, mm.
+pub const DEFAULT_CIRCLE_TOLERANCE_MM: f64 = 75.0;
+/// Default rendezvous tolerance beyond the arrival radius, mm: a car whose way to the
+/// consensus point is blocked by a nearer car holds within this much more (130 units, the
+/// law's blocking distance, see `docs/maneuvers.md`).
+pub const RENDEZVOUS_MARGIN_MM: f64 = 325.0;
+/// A rendezvous is complete only while every car is slower than this, mm/s.
+pub const RENDEZVOUS_STILL_MM_S: f64 = 20.0;
+
+/// An experiment, checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Experiment {
+    /// Name, used in outputs.
+    pub name: String,
+    /// Seconds the maneuvers may run, all phases together.
+    pub duration_s: f64,
+    /// Seed of every random source.
+    pub seed: u64,
+    /// Seconds allowed for every car's bring-up.
+    pub bringup_s: f64,
+    /// The cars.
+    pub cars: Vec<CarEntry>,
+    /// What the cars do, in order.
+    pub phases: Vec<Phase>,
+    /// Imperfections of the world.
+    pub faults: Faults,
+    /// Frames per second of every car's synthetic camera (written into its frame grabber);
+    /// `None`: no camera feed.
+    pub camera_fps: Option<f64>,
+    /// What runs the cars' firmware (`engine = "iss"`, the default, or `"qemu"`).
+    pub engine: EngineKind,
+    /// Threads stepping the cars on the virtual-time engine (the outputs do not depend on
+    /// it); default 1.
+    pub threads: usize,
+    /// Pace the virtual clock to the wall clock (set by `almc experiment run --realtime`;
+    /// always so with QEMU).
+    pub realtime: bool,
+    /// What happens when a car's firmware stops running.
+    pub on_car_failure: FailurePolicy,
+}
+
+/// What the world and the run do when a car's firmware stops (trap, exit, stuck processor,
+/// killed emulator).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FailurePolicy {
+    /// Stop the car's vehicle at once (as a lab's emergency stop would); the run goes on.
+    #[default]
+    Stop,
+    /// Stop the vehicle and end the run.
+    Abort,
+    /// Leave the vehicle as the LBC has it.
+    Ignore,
+}
+
+/// A car and its start pose (tracking units, 2.5 mm; heading mrad counter-clockwise from +X).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CarEntry {
+    /// Car ID, 1..=126.
+    pub id: u8,
+    /// X, 0..=600 inside the arena.
+    pub x: u16,
+    /// Y, 0..=800 inside the arena.
+    pub y: u16,
+    /// Heading, 0..=6283 mrad.
+    #[serde(default)]
+    pub heading_mrad: u16,
+}
+
+/// One car's go-to points, tracking units.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GotoCar {
+    /// Car ID.
+    pub id: u8,
+    /// Up to 7 points `[x, y]`.
+    pub points: Vec<[u16; 2]>,
+}
+
+/// When a phase starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Start {
+    /// Once the previous phase is complete or timed out (the first phase: at once).
+    AfterPrevious,
+    /// At this many seconds after the first phase started (cutting the previous one short).
+    At(f64),
+}
+
+/// One maneuver of the sequence.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Phase {
+    /// The maneuver.
+    pub kind: PhaseKind,
+    /// When it starts.
+    pub start: Start,
+    /// Longest time it may run before the next phase starts, s (`None`: bounded only by the
+    /// experiment's `duration_s`).
+    pub timeout_s: Option<f64>,
+    /// How long its completion test must hold, s.
+    pub hold_s: f64,
+    /// The completion test's bound on the phase error, mm (not used by `goto`).
+    pub tolerance_mm: f64,
+}
+
+/// A formation phase.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FormationPhase {
+    /// Line or wedge.
+    pub shape: Shape,
+    /// The leader's car ID.
+    pub leader: u8,
+    /// The followers in slot order (slot `k` is `followers[k]`).
+    pub followers: Vec<u8>,
+    /// Distance between neighbouring slots, tracking units.
+    pub spacing_units: u16,
+    /// The leader's cruise speed, mm/s.
+    pub speed_mm_s: u16,
+    /// The leader's waypoints, tracking units.
+    pub waypoints: Vec<[u16; 2]>,
+    /// When each waypoint is sent, s after the phase started (`None`: each once the leader
+    /// reached the previous one).
+    pub waypoint_at_s: Option<Vec<f64>>,
+    /// The leader has reached a waypoint within this distance, tracking units.
+    pub reach_units: u16,
+}
+
+/// What a phase does.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PhaseKind {
+    /// Each car drives through its points and stops: without a speed with the console go-to
+    /// maneuver (the LBC's own `MOVE_XY`, no avoidance), with a speed to its one point with
+    /// the group go-to law (car and wall avoidance).
+    Goto {
+        /// Per-car point lists (cars without one stay still).
+        cars: Vec<GotoCar>,
+        /// Speed of the group go-to law, mm/s (`None`: console go-to).
+        speed_mm_s: Option<u16>,
+    },
+    /// Leader-follower formation.
+    Formation(FormationPhase),
+    /// Rendezvous by consensus.
+    Rendezvous {
+        /// Arrival radius, tracking units.
+        radius_units: u16,
+        /// Maximum speed, mm/s.
+        speed_mm_s: u16,
+    },
+    /// Even spacing on a rotating circle.
+    Circle {
+        /// Centre `[x, y]`, tracking units.
+        centre: [u16; 2],
+        /// Radius, tracking units.
+        radius_units: u16,
+        /// Speed along the circle, mm/s (positive counter-clockwise).
+        speed_mm_s: i16,
+    },
+}
+
+impl PhaseKind {
+    /// The kind's name in the file.
+    pub fn name(&self) -> &'static str {
+        match self {
+            PhaseKind::Goto { .. } => "goto",
+            PhaseKind::Formation(_) => "formation",
+            PhaseKind::Rendezvous { .. } => "rendezvous",
+            PhaseKind::Circle { .. } => "circle",
+        }
+    }
+}
+
+impl Phase {
+    /// The group maneuver parameters car `id` is started with (`None` for a console `goto`,
+    /// for a car without a point in a group `goto`, and for a car that is neither leader nor
+    /// follower of a formation: these stand still).
+    pub fn params_for(&self, id: u8) -> Option<ManeuverParams> {
+        match &self.kind {
+            PhaseKind::Goto {
+                speed_mm_s: Some(speed),
+                ..
+            } => self.goto_points(id).first().map(|p| ManeuverParams::GoTo {
+                x: p[0],
+                y: p[1],
+                speed_mm_s: *speed,
+            }),
+            PhaseKind::Goto { .. } => None,
+            PhaseKind::Formation(f) if f.leader != id && !f.followers.contains(&id) => None,
+            PhaseKind::Formation(f) => Some(ManeuverParams::Formation {
+                shape: f.shape,
+                leader: f.leader,
+                slot: f
+                    .followers
+                    .iter()
+                    .position(|&c| c == id)
+                    .and_then(|k| u8::try_from(k).ok()),
+                spacing_units: f.spacing_units,
+                speed_mm_s: f.speed_mm_s,
+            }),
+            PhaseKind::Rendezvous {
+                radius_units,
+                speed_mm_s,
+            } => Some(ManeuverParams::Rendezvous {
+                radius_units: *radius_units,
+                speed_mm_s: *speed_mm_s,
+            }),
+            PhaseKind::Circle {
+                centre,
+                radius_units,
+                speed_mm_s,
+            } => Some(ManeuverParams::Circle {
+                cx: centre[0],
+                cy: centre[1],
+                radius_units: *radius_units,
+                speed_mm_s: *speed_mm_s,
+            }),
+        }
+    }
+
+    /// Car `id`'s go-to points in a `goto` phase (empty otherwise).
+    pub fn goto_points(&self, id: u8) -> Vec<[u16; 2]> {
+        match &self.kind {
+            PhaseKind::Goto { cars, .. } => cars
+                .iter()
+                .find(|g| g.id == id)
+                .map(|g| g.points.clone())
+                .unwrap_or_default(),
+            _ => Vec::new(),
+        }
+    }
+}
+
+/// Faults: radio loss, tracking imperfections, LBC link faults.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Faults {
+    /// Probability that a radio reception is lost.
+    pub radio_loss: f64,
+    /// Tracking position noise, standard deviation, mm.
+    pub tracking_noise_mm: f64,
+    /// Tracking heading noise, standard deviation, mrad.
+    pub tracking_heading_noise_mrad: f64,
+    /// Probability that a tracking fix is lost.
+    pub tracking_drop: f64,
+    /// Tracking latency, ms.
+    pub tracking_latency_ms: u64,
+    /// Tracking rate, Hz.
+    pub tracking_rate_hz: f64,
+    /// LBC link faults (every car).
+    pub lbc: LbcFaults,
+}
+
+impl Default for Faults {
+    fn default() -> Self {
+        Self {
+            radio_loss: 0.0,
+            tracking_noise_mm: 0.0,
+            tracking_heading_noise_mrad: 0.0,
+            tracking_drop: 0.0,
+            tracking_latency_ms: 10,
+            tracking_rate_hz: 30.0,
+            lbc: LbcFaults::default(),
+        }
+    }
+}
+
+/// LBC link faults, as `lbc_emu::FaultConfig`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LbcFaults {
+    /// Probability that a byte is lost, each direction.
+    pub drop: f64,
+    /// Probability that a byte has a bit flipped, each direction.
+    pub corrupt: f64,
+    /// Extra delay of each outgoing message, us.
+    pub delay_us: u64,
+    /// Probability that a reply or STREAM frame is never sent.
+    pub suppress: f64,
+    /// Mean seconds between spontaneous LBC resets (0: none).
+    pub reset_every_s: f64,
+}
+
+impl From<LbcFaults> for FaultConfig {
+    fn from(f: LbcFaults) -> Self {
+        FaultConfig {
+            drop: f.drop,
+            corrupt: f.corrupt,
+            delay_us: f.delay_us,
+            suppress: f.suppress,
+            reset_every_s: f.reset_every_s,
+        }
+    }
+}
+
+impl Experiment {
+    /// Reads and checks an experiment file; errors name the file.
+    pub fn load(path: &Path) -> Result<Self, ExperimentError> {
+        let text = fs::read_to_string(path).map_err(|source| ExperimentError::Read {
+            path: path.into(),
+            source,
+        })?;
+        Self::parse(&text).map_err(|e| ExperimentError::InFile {
+            path: path.into(),
+            source: Box::new(e),
+        })
+    }
+
+    /// Parses and checks an experiment.
+    pub fn parse(text: &str) -> Result<Self, ExperimentError> {
+        let raw: RawExperiment = toml::from_str(text).map_err(ExperimentError::Parse)?;
+        Self::from_raw(raw).map_err(ExperimentError::Invalid)
+    }
+
+    /// The world this experiment runs in.
+    pub fn world_config(&self, firmware: &Path) -> WorldConfig {
+        let cars = self
+            .cars
+            .iter()
+            .map(|c| {
+                CarSpec::new(
+                    c.id,
+                    Pose {
+                        x_mm: f64::from(c.x) * MM_PER_UNIT,
+                        y_mm: f64::from(c.y) * MM_PER_UNIT,
+                        heading_rad: f64::from(c.heading_mrad) / 1000.0,
+                    },
+                )
+            })
+            .collect();
+        let mut cfg = WorldConfig::new(firmware, cars);
+        cfg.seed = self.seed;
+        cfg.engine = self.engine;
+        cfg.threads = self.threads;
+        cfg.realtime = self.realtime;
+        cfg.stop_failed_cars = self.on_car_failure != FailurePolicy::Ignore;
+        cfg.radio = MediumParams {
+            loss_probability: self.faults.radio_loss,
+            ..MediumParams::default()
+        };
+        cfg.tracking = TrackingParams {
+            rate_hz: self.faults.tracking_rate_hz,
+            noise_mm: self.faults.tracking_noise_mm,
+            heading_noise_mrad: self.faults.tracking_heading_noise_mrad,
+            latency: Duration::from_millis(self.faults.tracking_latency_ms),
+            drop: self.faults.tracking_drop,
+        };
+        cfg.lbc_faults = self.faults.lbc.into();
+        cfg.camera = self.camera_fps.map(|fps| FeedConfig {
+            fps,
+            seed: self.seed,
+            ..FeedConfig::default()
+        });
+        cfg
+    }
+}

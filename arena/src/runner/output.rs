@@ -1,0 +1,251 @@
+//! The end of a run: the cars' link statistics, the summary, and the output files.
+
+use super::control::CarState;
+use super::judge::waypoint_mm;
+use super::*;
+
+/// What the run loop hands over once the maneuvers are over.
+pub(super) struct Finished {
+    pub(super) ran: f64,
+    pub(super) aborted: bool,
+    pub(super) cancelled: bool,
+    pub(super) log: EventLog,
+    pub(super) states: Vec<CarState>,
+    pub(super) phases: Vec<PhaseResult>,
+    pub(super) tracks: Vec<Vec<Sample>>,
+    pub(super) failures: Vec<CarFailure>,
+}
+
+/// `v` rounded to `digits` decimals (summary values are given to what they mean).
+pub fn round_to(v: f64, digits: i32) -> f64 {
+    let f = 10f64.powi(digits);
+    (v * f).round() / f
+}
+
+/// Asks every running car for its statistics, builds the summary and writes every output.
+pub(super) fn finish(
+    exp: &Experiment,
+    world: &mut World,
+    run: Finished,
+    out: &Path,
+) -> Result<Summary, ExperimentError> {
+    let Finished {
+        ran,
+        aborted,
+        cancelled,
+        mut log,
+        states,
+        phases,
+        tracks,
+        failures,
+    } = run;
+    let ids: Vec<u8> = world.ids().to_vec();
+    let truth_now = world.truth();
+    // Link statistics: each running car's console stats.
+    let mut stats = Vec::new();
+    for (k, &id) in ids.iter().enumerate() {
+        let mut pages = serde_json::Map::new();
+        if truth_now[k].failure.is_none() {
+            for page in StatsPage::ALL {
+                if let Ok(Reply::Stats { values, .. }) =
+                    world.request(id, &Request::Stats(page as u8), Duration::from_secs(3))
+                {
+                    let counters: serde_json::Map<String, Value> = page
+                        .counters()
+                        .iter()
+                        .zip(values.iter())
+                        .map(|(n, v)| ((*n).to_owned(), json!(v)))
+                        .collect();
+                    pages.insert(page.name().to_owned(), Value::Object(counters));
+                }
+            }
+        }
+        stats.push(Value::Object(pages));
+    }
+    for ev in world.take_events() {
+        log.push_at(ev.at, Some(ev.car), &ev.what);
+    }
+    let truth = world.truth();
+    let ground = world.ground_counters();
+    let gstats = world.ground_stats();
+    let medium = world.medium_stats();
+
+    // The last go-to points each car was given.
+    let last_points = |id: u8| -> Vec<[u16; 2]> {
+        exp.phases
+            .iter()
+            .rev()
+            .map(|p| p.goto_points(id))
+            .find(|p| !p.is_empty())
+            .unwrap_or_default()
+    };
+    let mut cars = Vec::new();
+    for (k, &id) in ids.iter().enumerate() {
+        let targets = last_points(id);
+        let t = &truth[k];
+        let s = &states[k];
+        let load = world.core_load(k);
+        cars.push(CarResult {
+            id,
+            distance_mm: round_to(metrics::distance_travelled(&tracks[k]), 1),
+            final_error_mm: s.goto_error_mm.map(|e| round_to(e, 1)),
+            arrived: targets.is_empty()
+                || (!s.goto_missed && !s.goto_running && s.arrival.is_some()),
+            arrival_s: s.arrival.map(|a| round_to(a, 2)),
+            wall_violations: metrics::wall_violations(&tracks[k]),
+            stats: stats[k].clone(),
+            lbc: json!({
+                "rx_bytes": t.lbc.rx_bytes, "tx_bytes": t.lbc.tx_bytes,
+                "commands": t.lbc.commands, "replies": t.lbc.replies, "errors": t.lbc.errors,
+                "cser": t.lbc.cser, "unkcmd": t.lbc.unkcmd,
+                "stream_frames": t.lbc.stream_frames, "tx_overflow": t.lbc.tx_overflow,
+                "resets": t.lbc.resets,
+                "fault_dropped": t.lbc_faults.dropped, "fault_corrupted": t.lbc_faults.corrupted,
+                "fault_suppressed": t.lbc_faults.suppressed, "fault_resets": t.lbc_faults.resets,
+            }),
+            tracking: json!({ "delivered": t.fixes_delivered, "dropped": t.fixes_dropped }),
+            states_heard: t.states_heard,
+            processor_load: load.map(|l| round_to(l.load(), 4)),
+            failed: failures.iter().find(|f| f.car == id).cloned(),
+        });
+    }
+    let radio = json!({
+        "ground": {
+            "requests": ground.requests, "replies": ground.replies, "failed": ground.failed,
+            "states_heard": ground.states_heard, "notices": ground.notices,
+            "retries": gstats.retries, "rx_frames": gstats.rx_frames,
+        },
+        "medium": {
+            "packets_sent": medium.packets_sent, "deliveries": medium.deliveries,
+            "collisions": medium.collisions, "half_duplex": medium.half_duplex,
+            "random_losses": medium.random_losses, "distance_losses": medium.distance_losses,
+            "rx_overflows": medium.rx_overflows, "csma_drops": medium.csma_drops,
+        },
+        "nodes": world.node_counters().iter().map(|n| json!({
+            "node": n.name, "bytes_in": n.bytes_in, "bytes_out": n.bytes_out,
+        })).collect::<Vec<_>>(),
+    });
+    let phase_at = |t: f64| {
+        phases
+            .iter()
+            .find(|p| t >= p.start_s && t <= p.end_s)
+            .map(|p| p.phase)
+    };
+    let summary = Summary {
+        name: exp.name.clone(),
+        engine: world.engine_name(),
+        duration_s: round_to(ran, 3),
+        cancelled,
+        aborted,
+        completed: phases.len() == exp.phases.len() && phases.iter().all(|p| p.completed),
+        all_arrived: cars.iter().all(|c| c.arrived),
+        min_separation_mm: metrics::min_separation(&tracks).map(|e| round_to(e.distance_mm, 1)),
+        collisions: metrics::collisions(&tracks)
+            .iter()
+            .map(|e| {
+                json!({
+                    "cars": [ids[e.cars.0], ids[e.cars.1]], "t": e.t,
+                    "distance_mm": round_to(e.distance_mm, 1), "phase": phase_at(e.t),
+                })
+            })
+            .collect(),
+        failed_cars: failures,
+        phases,
+        cars,
+        radio,
+    };
+
+    log.finish()?;
+    let text = serde_json::to_string_pretty(&summary).unwrap_or_default();
+    write_file(&out.join("summary.json"), &text)?;
+    write_file(
+        &out.join("trajectories.svg"),
+        &plot_document(exp, &ids, &tracks, &summary.phases),
+    )?;
+    Ok(summary)
+}
+
+/// `run.json`: what a run depends on besides its inputs and what it cost (wall-clock times,
+/// host, versions). The only output that differs between two runs of the same experiment.
+pub(super) fn write_run_info(
+    out: &Path,
+    world: &World,
+    state: &str,
+    started: std::time::SystemTime,
+    wall: Duration,
+) -> Result<(), ExperimentError> {
+    let unix = started
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let host = fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_owned())
+        .unwrap_or_default();
+    let world_s = world.now().as_secs_f64();
+    let info = json!({
+        "state": state,
+        "started_unix_s": unix,
+        "wall_s": wall.as_secs_f64(),
+        "world_s": world_s,
+        "speed": if wall.as_secs_f64() > 0.0 { world_s / wall.as_secs_f64() } else { 0.0 },
+        "engine": world.engine_name(),
+        "host": host,
+        "arena_version": env!("CARGO_PKG_VERSION"),
+        "cars": world.ids().len(),
+        "load": (0..world.ids().len()).map(|k| world.core_load(k).map(|l| json!({
+            "cycles": l.cycles, "awake_cycles": l.awake_cycles, "retired": l.retired,
+        }))).collect::<Vec<_>>(),
+    });
+    let text = serde_json::to_string_pretty(&info).unwrap_or_default();
+    write_file(&out.join("run.json"), &text)
+}
+
+/// The plot: tracks, go-to points and formation waypoints as crosses, circles drawn, phase
+/// starts numbered on every track.
+pub(super) fn plot_document(
+    exp: &Experiment,
+    ids: &[u8],
+    tracks: &[Vec<Sample>],
+    phases: &[PhaseResult],
+) -> String {
+    let targets: Vec<Vec<(f64, f64)>> = ids
+        .iter()
+        .map(|&id| {
+            let mut pts = Vec::new();
+            for p in &exp.phases {
+                pts.extend(p.goto_points(id).into_iter().map(waypoint_mm));
+                if let PhaseKind::Formation(f) = &p.kind {
+                    if f.leader == id {
+                        pts.extend(f.waypoints.iter().copied().map(waypoint_mm));
+                    }
+                }
+            }
+            pts
+        })
+        .collect();
+    let plot_tracks: Vec<plot::Track<'_>> = ids
+        .iter()
+        .enumerate()
+        .map(|(k, &id)| plot::Track {
+            id,
+            samples: &tracks[k],
+            targets: &targets[k],
+        })
+        .collect();
+    let overlay = plot::Overlay {
+        phase_starts: phases.iter().map(|p| (p.phase, p.start_s)).collect(),
+        circles: exp
+            .phases
+            .iter()
+            .filter_map(|p| match &p.kind {
+                PhaseKind::Circle {
+                    centre,
+                    radius_units,
+                    ..
+                } => Some((waypoint_mm(*centre), f64::from(*radius_units) * MM_PER_UNIT)),
+                _ => None,
+            })
+            .collect(),
+    };
+    plot::svg_with(&exp.name, &plot_tracks, &overlay)
+}

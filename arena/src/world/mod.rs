@@ -1,0 +1,883 @@
+//! The world: N cars, each running the real UBC firmware on a car engine ([`crate::engine`]),
+//! each wired to its own emulated LBC (`lbc-emu`, which also moves the vehicle); one radio
+//! medium ([`RadioMedium`]) shared by every car's radio and the ground station; the overhead
+//! tracker; the synthetic camera feeding each car's frame grabber.
+//!
+//! The world owns time. It advances in fixed quanta of world time: every car runs to the end of
+//! the quantum with the bytes due to it, then the world feeds what the cars sent to the LBCs
+//! and the medium (merged in time order), steps them, the tracker, the camera and the ground
+//! station to the same instant, and queues their output for the cars. Cars touch the world only
+//! at these boundaries, so with the virtual-time engine a run is a function of its
+//! configuration and seed, whatever the number of threads. With QEMU (or `realtime`) each
+//! quantum also waits for the wall clock, so a person can talk to the cars.
+//!
+//! Dropping the [`World`] stops every car and removes its run directory.
+
+mod ground;
+mod tracker;
+
+pub use ground::PendingReply;
+pub use qemu_harness::{firmware_elf, softcore_elf};
+
+use crate::camera::{CarPose, SyntheticCamera};
+use crate::camera_feed::{FeedConfig, FeedStats, WindowPublisher, RUN_DIR_PREFIX};
+use crate::engine::iss::{IssEngine, IssError};
+use crate::engine::qemu::{QemuEngine, QemuEngineError};
+use crate::engine::{CarEngine, CarIo, CoreLoad, Failure, Nanos};
+use crate::radio_medium::{MediumParams, MediumStats, NodeId, RadioMedium};
+use ground::Ground;
+use lbc_emu::{FaultConfig, Lbc, LbcConfig, LbcStats, Pose};
+use radio_mac::{CarId, CarState};
+use std::fmt;
+use std::io::{self, ErrorKind, Read, Write};
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+use tracker::Tracker;
+use ubc_app::program::console::{Reply, Request};
+
+/// Millimetres per tracking unit.
+pub const MM_PER_UNIT: f64 = 2.5;
+/// Default quantum: cars and world meet every 100 us of world time (about one UART
+/// character at 115200 baud).
+pub const DEFAULT_QUANTUM: Duration = Duration::from_micros(100);
+
+/// What runs the cars' firmware.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EngineKind {
+    /// The soft core's cycle-accurate model, in virtual time (`softcore` firmware builds).
+    #[default]
+    Iss,
+    /// QEMU in wall-clock time (`qemu_virt` firmware builds).
+    Qemu,
+}
+
+impl EngineKind {
+    /// `"iss"` or `"qemu"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            EngineKind::Iss => "iss",
+            EngineKind::Qemu => "qemu",
+        }
+    }
+
+    /// Parses `"iss"` or `"qemu"`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "iss" => Some(EngineKind::Iss),
+            "qemu" => Some(EngineKind::Qemu),
+            _ => None,
+        }
+    }
+
+    /// The firmware this engine runs, as built by `cargo xtask fw` (or given by
+    /// `VTB_FIRMWARE` / `UBC_FW_ELF`).
+    pub fn default_firmware(self) -> Result<PathBuf, qemu_harness::Error> {
+        match self {
+            EngineKind::Iss => softcore_elf(),
+            EngineKind::Qemu => firmware_elf(),
+        }
+    }
+}
+
+/// One car of the world.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CarSpec {
+    /// Car ID (1..=126), written to EEPROM register 0x00.
+    pub id: u8,
+    /// Start pose (mm, mm, rad counter-clockwise from +X).
+    pub start: Pose,
+    /// This car's firmware ELF, when it differs from [`WorldConfig::firmware`].
+    pub firmware: Option<PathBuf>,
+}
+
+impl CarSpec {
+    /// Car `id` at `start` with the world's firmware.
+    pub fn new(id: u8, start: Pose) -> Self {
+        CarSpec {
+            id,
+            start,
+            firmware: None,
+        }
+    }
+}
+
+/// The overhead tracker's imperfections.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackingParams {
+    /// Broadcast rate, Hz.
+    pub rate_hz: f64,
+    /// Standard deviation of the position noise, mm.
+    pub noise_mm: f64,
+    /// Standard deviation of the heading noise, mrad.
+    pub heading_noise_mrad: f64,
+    /// Delay from measuring a pose to the LBC receiving it.
+    pub latency: Duration,
+    /// Probability that one car's fix is lost.
+    pub drop: f64,
+}
+
+impl Default for TrackingParams {
+    fn default() -> Self {
+        Self {
+            rate_hz: 30.0,
+            noise_mm: 0.0,
+            heading_noise_mrad: 0.0,
+            latency: Duration::from_millis(10),
+            drop: 0.0,
+        }
+    }
+}
+
+/// Everything that configures a world.
+#[derive(Debug, Clone)]
+pub struct WorldConfig {
+    /// The firmware ELF of every car without its own (a `softcore` build for
+    /// [`EngineKind::Iss`], a `qemu_virt` build for [`EngineKind::Qemu`]).
+    pub firmware: PathBuf,
+    /// The cars.
+    pub cars: Vec<CarSpec>,
+    /// The tracker.
+    pub tracking: TrackingParams,
+    /// The radio channel.
+    pub radio: MediumParams,
+    /// LBC link faults, applied to every car.
+    pub lbc_faults: FaultConfig,
+    /// Seed of every random source.
+    pub seed: u64,
+    /// The command key shared by the ground station and the firmware.
+    pub key: [u8; 16],
+    /// How long to wait for each QEMU firmware's banner.
+    pub boot_timeout: Duration,
+    /// Camera frames into every car's frame grabber; `None`: no camera.
+    pub camera: Option<FeedConfig>,
+    /// What runs the firmware.
+    pub engine: EngineKind,
+    /// Threads stepping the cars (virtual-time engine); the result does not depend on it.
+    pub threads: usize,
+    /// Pace world time to the wall clock (always so with QEMU), and open a radio node for
+    /// `almc car` at `<run dir>/ground.sock`.
+    pub realtime: bool,
+    /// How much world time passes between two meetings of the cars and the world.
+    pub quantum: Duration,
+    /// Stop a car's vehicle (as an emergency stop would) when its firmware stops running.
+    pub stop_failed_cars: bool,
+}
+
+impl WorldConfig {
+    /// A world of `cars` with default tracking, radio, no faults, on the virtual-time engine.
+    pub fn new(firmware: impl Into<PathBuf>, cars: Vec<CarSpec>) -> Self {
+        Self {
+            firmware: firmware.into(),
+            cars,
+            tracking: TrackingParams::default(),
+            radio: MediumParams::default(),
+            lbc_faults: FaultConfig::default(),
+            seed: 1,
+            key: ubc_app::program::DEFAULT_KEY,
+            boot_timeout: Duration::from_secs(30),
+            camera: None,
+            engine: EngineKind::Iss,
+            threads: 1,
+            realtime: false,
+            quantum: DEFAULT_QUANTUM,
+            stop_failed_cars: true,
+        }
+    }
+}
+
+/// Why the world could not start or answer.
+#[derive(Debug)]
+pub enum WorldError {
+    /// No cars, a car ID outside 1..=126, or one ID twice.
+    BadCar { id: u8 },
+    /// A socket, file or directory of the run.
+    Io(io::Error),
+    /// The virtual-time engine could not start.
+    Iss(IssError),
+    /// QEMU could not start.
+    Qemu(QemuEngineError),
+    /// The quantum is zero or longer than 10 ms.
+    BadQuantum(Duration),
+    /// The console request could not be encoded.
+    Encode(ubc_app::program::console::EncodeError),
+    /// The ground station refused the request.
+    Send(radio_mac::SendError),
+    /// The reply did not decode.
+    BadReply(ubc_app::program::console::DecodeError),
+    /// No reply after every retransmission.
+    NoReply { id: u8 },
+    /// No reply within the time asked for.
+    Timeout { id: u8 },
+}
+
+impl fmt::Display for WorldError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            WorldError::BadCar { id: 0 } => write!(f, "the world needs at least one car"),
+            WorldError::BadCar { id } => {
+                write!(f, "car ID {id} is outside 1..=126 or appears twice")
+            }
+            WorldError::Io(e) => write!(f, "{e}"),
+            WorldError::Iss(e) => write!(f, "{e}"),
+            WorldError::Qemu(e) => write!(f, "{e}"),
+            WorldError::BadQuantum(q) => {
+                write!(f, "quantum {q:?} is outside (0, 10 ms]")
+            }
+            WorldError::Encode(e) => write!(f, "cannot encode the request: {e:?}"),
+            WorldError::Send(e) => write!(f, "the ground station cannot send: {e:?}"),
+            WorldError::BadReply(e) => write!(f, "the reply does not decode: {e:?}"),
+            WorldError::NoReply { id } => write!(f, "car {id} did not answer"),
+            WorldError::Timeout { id } => write!(f, "car {id} did not answer in time"),
+        }
+    }
+}
+
+impl std::error::Error for WorldError {}
+
+impl From<io::Error> for WorldError {
+    fn from(e: io::Error) -> Self {
+        WorldError::Io(e)
+    }
+}
+
+/// What the world knows of one car right now (the truth, not what the car believes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CarTruth {
+    /// Car ID.
+    pub id: u8,
+    /// Pose from the vehicle model.
+    pub pose: Pose,
+    /// Speed from the vehicle model, mm/s.
+    pub v_mm_s: f64,
+    /// The LBC's link counters.
+    pub lbc: LbcStats,
+    /// LBC fault counters (dropped, corrupted, suppressed, resets).
+    pub lbc_faults: lbc_emu::faults::FaultStats,
+    /// The car's firmware runs.
+    pub connected: bool,
+    /// Tracking fixes delivered to the LBC.
+    pub fixes_delivered: u64,
+    /// Tracking fixes dropped by the tracker.
+    pub fixes_dropped: u64,
+    /// Latest radio state the ground station heard from the car.
+    pub radio_state: Option<CarState>,
+    /// Radio state broadcasts the ground station heard from the car.
+    pub states_heard: u64,
+    /// The firmware stopped: when and why.
+    pub failure: Option<Failure>,
+}
+
+/// Ground-station counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GroundCounters {
+    /// Requests sent.
+    pub requests: u64,
+    /// Replies received.
+    pub replies: u64,
+    /// Requests that got no reply after every retransmission.
+    pub failed: u64,
+    /// State broadcasts heard.
+    pub states_heard: u64,
+    /// Notices (requests from cars) acknowledged.
+    pub notices: u64,
+}
+
+/// Bytes through one node's radio UART.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct NodeCounters {
+    /// Node name (`ground`, `car<ID>`, `user`).
+    pub name: String,
+    /// Bytes the node's host wrote to its radio.
+    pub bytes_in: u64,
+    /// Bytes the radio delivered to the node's host.
+    pub bytes_out: u64,
+}
+
+/// Something the world records as it runs (for event logs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorldEvent {
+    /// World time.
+    pub at: Duration,
+    /// The car concerned.
+    pub car: u8,
+    /// What happened.
+    pub what: String,
+}
+
+/// Removes a directory however the world ends.
+#[derive(Debug)]
+struct DirGuard(PathBuf);
+
+impl Drop for DirGuard {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// The camera: one synthetic camera and window writer per car.
+struct Camera {
+    period: Nanos,
+    next: Nanos,
+    cams: Vec<SyntheticCamera>,
+    publishers: Vec<Option<WindowPublisher>>,
+    frame: Vec<u8>,
+    stats: FeedStats,
+}
+
+/// A person's ground station attached over a socket (real-time worlds only).
+struct UserLink {
+    listener: UnixListener,
+    conn: Option<UnixStream>,
+    node: NodeId,
+}
+
+/// A running world.
+pub struct World {
+    engine: Box<dyn CarEngine>,
+    lbcs: Vec<Lbc>,
+    io: Vec<CarIo>,
+    ids: Vec<u8>,
+    nodes: Vec<NodeId>,
+    node_counters: Vec<NodeCounters>,
+    medium: RadioMedium,
+    ground_node: NodeId,
+    ground: Ground,
+    tracker: Tracker,
+    camera: Option<Camera>,
+    user: Option<UserLink>,
+    failed: Vec<bool>,
+    events: Vec<WorldEvent>,
+    now: Nanos,
+    quantum: Nanos,
+    paced: bool,
+    wall_start: Instant,
+    stop_failed: bool,
+    scratch: Vec<(Nanos, usize, u8)>,
+    rx_scratch: Vec<(Nanos, u8)>,
+    _dir: DirGuard,
+}
+
+impl fmt::Debug for World {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("World")
+            .field("engine", &self.engine.name())
+            .field("cars", &self.ids)
+            .field("now_ns", &self.now)
+            .finish_non_exhaustive()
+    }
+}
+
+static NEXT_WORLD: AtomicU64 = AtomicU64::new(0);
+
+/// Metres on the radio medium from a pose in mm.
+fn metres(p: &Pose) -> (f64, f64) {
+    (p.x_mm / 1000.0, p.y_mm / 1000.0)
+}
+
+fn nanos(d: Duration) -> Nanos {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
+}
+
+impl World {
+    /// Starts every car's firmware on the chosen engine with its LBC, the radio medium, the
+    /// ground station and the tracker, at world time zero.
+    pub fn start(cfg: &WorldConfig) -> Result<World, WorldError> {
+        let mut ids: Vec<u8> = Vec::new();
+        for c in &cfg.cars {
+            if CarId::new(c.id).is_none() || ids.contains(&c.id) {
+                return Err(WorldError::BadCar { id: c.id });
+            }
+            ids.push(c.id);
+        }
+        if ids.is_empty() {
+            return Err(WorldError::BadCar { id: 0 });
+        }
+        if cfg.quantum.is_zero() || cfg.quantum > Duration::from_millis(10) {
+            return Err(WorldError::BadQuantum(cfg.quantum));
+        }
+        let dir = std::env::temp_dir().join(format!(
+            "{RUN_DIR_PREFIX}{}-{}",
+            std::process::id(),
+            NEXT_WORLD.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&dir)?;
+        let dir = DirGuard(dir);
+        let firmware: Vec<PathBuf> = cfg
+            .cars
+            .iter()
+            .map(|c| c.firmware.clone().unwrap_or_else(|| cfg.firmware.clone()))
+            .collect();
+        let mut engine: Box<dyn CarEngine> = match cfg.engine {
+            EngineKind::Iss => {
+                Box::new(IssEngine::new(&firmware, cfg.threads.max(1)).map_err(WorldError::Iss)?)
+            }
+            EngineKind::Qemu => {
+                let cars: Vec<(u8, PathBuf)> = ids.iter().copied().zip(firmware).collect();
+                Box::new(
+                    QemuEngine::start(&dir.0, &cars, cfg.camera.is_some(), cfg.boot_timeout)
+                        .map_err(WorldError::Qemu)?,
+                )
+            }
+        };
+        let lbcs: Vec<Lbc> = cfg
+            .cars
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let mut lc = LbcConfig::default();
+                lc.start_pose = c.start;
+                lc.faults = cfg.lbc_faults;
+                lc.seed = cfg.seed.wrapping_add(i as u64 * 7919);
+                Lbc::with_memory_eeprom(lc, c.id)
+            })
+            .collect();
+        let mut medium = RadioMedium::new(cfg.radio.clone(), cfg.seed);
+        let ground_node = medium.add_node((0.75, -0.2));
+        let mut node_counters = vec![NodeCounters {
+            name: "ground".into(),
+            ..NodeCounters::default()
+        }];
+        let nodes: Vec<NodeId> = cfg
+            .cars
+            .iter()
+            .map(|c| {
+                node_counters.push(NodeCounters {
+                    name: format!("car{}", c.id),
+                    ..NodeCounters::default()
+                });
+                medium.add_node(metres(&c.start))
+            })
+            .collect();
+        let paced = cfg.realtime || engine.wall_clock();
+        let user = if paced {
+            let path = dir.0.join("ground.sock");
+            let listener = UnixListener::bind(&path)?;
+            listener.set_nonblocking(true)?;
+            node_counters.push(NodeCounters {
+                name: "user".into(),
+                ..NodeCounters::default()
+            });
+            Some(UserLink {
+                listener,
+                conn: None,
+                node: medium.add_node((0.75, -0.3)),
+            })
+        } else {
+            None
+        };
+        let camera = match cfg.camera {
+            Some(config) => {
+                let cams: Vec<SyntheticCamera> = ids
+                    .iter()
+                    .map(|&id| {
+                        SyntheticCamera::new(config.camera, config.seed.wrapping_add(u64::from(id)))
+                    })
+                    .collect();
+                let g = cams[0].geometry();
+                let publishers = (0..ids.len())
+                    .map(|k| {
+                        engine
+                            .window(k)
+                            .and_then(|w| WindowPublisher::init(w, &g).ok())
+                    })
+                    .collect();
+                Some(Camera {
+                    period: (1e9 / config.fps.clamp(0.1, 1000.0)).round() as Nanos,
+                    next: 0,
+                    frame: vec![0; g.frame_len()],
+                    cams,
+                    publishers,
+                    stats: FeedStats::default(),
+                })
+            }
+            None => None,
+        };
+        let n = ids.len();
+        Ok(World {
+            engine,
+            lbcs,
+            io: vec![CarIo::default(); n],
+            nodes,
+            node_counters,
+            medium,
+            ground_node,
+            ground: Ground::new(&ids, cfg.key, cfg.seed),
+            tracker: Tracker::new(cfg.tracking, n, cfg.seed),
+            camera,
+            user,
+            failed: vec![false; n],
+            events: Vec::new(),
+            now: 0,
+            quantum: nanos(cfg.quantum),
+            paced,
+            wall_start: Instant::now(),
+            stop_failed: cfg.stop_failed_cars,
+            scratch: Vec::new(),
+            rx_scratch: Vec::new(),
+            ids,
+            _dir: dir,
+        })
+    }
+
+    /// World time.
+    pub fn now(&self) -> Duration {
+        Duration::from_nanos(self.now)
+    }
+
+    /// The engine's name (`iss` or `qemu`).
+    pub fn engine_name(&self) -> &'static str {
+        self.engine.name()
+    }
+
+    /// Whether world time follows the wall clock.
+    pub fn paced(&self) -> bool {
+        self.paced
+    }
+
+    /// The directory holding the run's sockets (and QEMU cars' RAM files); removed when the
+    /// world ends. In a real-time world, `ground.sock` in it is a radio node for `almc car`.
+    pub fn run_dir(&self) -> &Path {
+        &self._dir.0
+    }
+
+    /// Car IDs in configuration order.
+    pub fn ids(&self) -> &[u8] {
+        &self.ids
+    }
+
+    /// Runs the world until world time `t` (nothing happens if `t` has passed).
+    pub fn run_until(&mut self, t: Duration) {
+        let target = nanos(t);
+        while self.now < target {
+            self.step();
+        }
+    }
+
+    /// Runs the world for `d` of world time.
+    pub fn run_for(&mut self, d: Duration) {
+        self.run_until(self.now() + d);
+    }
+
+    /// One quantum.
+    fn step(&mut self) {
+        let t0 = self.now;
+        let t1 = t0 + self.quantum;
+        self.feed_camera(t0);
+        if self.paced {
+            let due = self.wall_start + Duration::from_nanos(t1);
+            let now = Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+        for io in &mut self.io {
+            io.clear_outputs();
+        }
+        self.engine.advance(t1, &mut self.io);
+        self.note_failures();
+        // The cars' radio bytes, and a person's, into the medium in time order (each byte
+        // leaves the host's UART one byte time before its stop bit ends).
+        let byte_ns = self.medium.params().uart_byte_ns;
+        self.scratch.clear();
+        for (k, io) in self.io.iter().enumerate() {
+            for &(t, b) in &io.radio_out {
+                self.scratch.push((t.saturating_sub(byte_ns), k, b));
+            }
+        }
+        self.scratch.sort_by_key(|&(t, k, _)| (t, k));
+        for &(t, k, b) in &self.scratch {
+            self.medium.write(self.nodes[k], t, &[b]);
+            self.node_counters[k + 1].bytes_in += 1;
+        }
+        // The LBCs: what the cars sent, the tracker's fixes, then their own tasks to t1.
+        let t1_us = t1 / 1000;
+        for (lbc, io) in self.lbcs.iter_mut().zip(&self.io) {
+            for &(t, b) in &io.lbc_out {
+                lbc.push_rx(t / 1000, &[b]);
+            }
+        }
+        if self.tracker.step(t1, &mut self.lbcs) {
+            for (k, lbc) in self.lbcs.iter().enumerate() {
+                self.medium
+                    .set_position(self.nodes[k], metres(&lbc.vehicle().pose()));
+            }
+        }
+        let ahead_us = (t1 + self.quantum) / 1000;
+        for (k, lbc) in self.lbcs.iter_mut().enumerate() {
+            let resets = lbc.stats().resets;
+            lbc.step_until(t1_us);
+            if lbc.stats().resets != resets {
+                self.events.push(WorldEvent {
+                    at: Duration::from_nanos(t1),
+                    car: self.ids[k],
+                    what: "lbc-reset".into(),
+                });
+            }
+            while let Some((t, b)) = lbc.pop_tx(ahead_us) {
+                self.io[k].lbc_in.push((t * 1000, b));
+            }
+        }
+        // The medium to t1; bytes it has queued for the cars up to the next quantum's end.
+        self.medium.step(t1);
+        let ahead = t1 + self.quantum;
+        for (k, &node) in self.nodes.iter().enumerate() {
+            let before = self.io[k].radio_in.len();
+            self.medium.take_rx(node, ahead, &mut self.io[k].radio_in);
+            self.node_counters[k + 1].bytes_out += (self.io[k].radio_in.len() - before) as u64;
+        }
+        // The ground station, and a person's ground station.
+        self.rx_scratch.clear();
+        self.medium
+            .take_rx(self.ground_node, t1, &mut self.rx_scratch);
+        let rx: Vec<u8> = self.rx_scratch.iter().map(|&(_, b)| b).collect();
+        self.node_counters[0].bytes_out += rx.len() as u64;
+        let tx = self.ground.step(t1, &rx, &mut self.events).to_vec();
+        if !tx.is_empty() {
+            self.medium.write(self.ground_node, t1, &tx);
+            self.node_counters[0].bytes_in += tx.len() as u64;
+        }
+        self.serve_user(t1);
+        self.now = t1;
+    }
+
+    /// Publishes a camera frame into every camera car's window at each frame time before
+    /// the quantum that starts at `t0` ends.
+    fn feed_camera(&mut self, t0: Nanos) {
+        let Some(cam) = self.camera.as_mut() else {
+            return;
+        };
+        if cam.next > t0 {
+            return;
+        }
+        let capture = cam.next;
+        cam.next += cam.period;
+        let poses: Vec<CarPose> = self
+            .lbcs
+            .iter()
+            .zip(&self.ids)
+            .map(|(l, &id)| {
+                let p = l.vehicle().pose();
+                CarPose {
+                    id,
+                    x_mm: p.x_mm as f32,
+                    y_mm: p.y_mm as f32,
+                    yaw_rad: p.heading_rad as f32,
+                }
+            })
+            .collect();
+        for k in 0..self.ids.len() {
+            if self.failed[k] {
+                continue;
+            }
+            let (Some(publisher), Some(window)) =
+                (cam.publishers[k].as_mut(), self.engine.window(k))
+            else {
+                continue;
+            };
+            let ok = cam.cams[k]
+                .render(&poses[k], &poses, &mut cam.frame)
+                .is_ok()
+                && publisher
+                    .publish(window, &cam.frame, capture / 1000)
+                    .is_ok();
+            if ok {
+                cam.stats.frames += 1;
+            } else {
+                cam.stats.failed += 1;
+            }
+        }
+    }
+
+    /// Records cars whose firmware stopped, and stops their vehicles.
+    fn note_failures(&mut self) {
+        for k in 0..self.ids.len() {
+            if self.failed[k] {
+                continue;
+            }
+            let Some(f) = self.engine.failure(k) else {
+                continue;
+            };
+            self.failed[k] = true;
+            self.events.push(WorldEvent {
+                at: Duration::from_nanos(f.at),
+                car: self.ids[k],
+                what: format!("car-failed: {}", f.kind),
+            });
+            if self.stop_failed {
+                self.lbcs[k].emergency_stop();
+                self.events.push(WorldEvent {
+                    at: Duration::from_nanos(self.now + self.quantum),
+                    car: self.ids[k],
+                    what: "vehicle-stopped".into(),
+                });
+            }
+        }
+    }
+
+    /// Carries bytes between a person's ground station on `ground.sock` and its radio node.
+    fn serve_user(&mut self, now: Nanos) {
+        let Some(u) = self.user.as_mut() else {
+            return;
+        };
+        if u.conn.is_none() {
+            if let Ok((s, _)) = u.listener.accept() {
+                if s.set_nonblocking(true).is_ok() {
+                    u.conn = Some(s);
+                }
+            }
+        }
+        let mut out = Vec::new();
+        self.medium.take_rx(u.node, now, &mut out);
+        let Some(s) = u.conn.as_mut() else {
+            return;
+        };
+        let mut lost = false;
+        let mut got = 0u64;
+        let mut buf = [0u8; 1024];
+        loop {
+            match s.read(&mut buf) {
+                Ok(0) => {
+                    lost = true;
+                    break;
+                }
+                Ok(n) => {
+                    self.medium.write(u.node, now, &buf[..n]);
+                    got += n as u64;
+                }
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(_) => break,
+            }
+        }
+        let bytes: Vec<u8> = out.iter().map(|&(_, b)| b).collect();
+        if !bytes.is_empty() && s.write_all(&bytes).is_err() {
+            lost = true;
+        }
+        if let Some(c) = self.node_counters.last_mut() {
+            c.bytes_in += got;
+            c.bytes_out += bytes.len() as u64;
+        }
+        if lost {
+            u.conn = None;
+        }
+    }
+
+    /// The truth about every car, in configuration order.
+    pub fn truth(&self) -> Vec<CarTruth> {
+        self.lbcs
+            .iter()
+            .enumerate()
+            .map(|(k, l)| CarTruth {
+                id: self.ids[k],
+                pose: l.vehicle().pose(),
+                v_mm_s: l.vehicle().speed_mm_s(),
+                lbc: l.stats(),
+                lbc_faults: l.fault_stats(),
+                connected: !self.failed[k],
+                fixes_delivered: self.tracker.delivered[k],
+                fixes_dropped: self.tracker.dropped[k],
+                radio_state: self.ground.states[k].0,
+                states_heard: self.ground.states[k].1,
+                failure: self.engine.failure(k).cloned(),
+            })
+            .collect()
+    }
+
+    /// Car `k`'s processor load (virtual-time engine).
+    pub fn core_load(&self, k: usize) -> Option<CoreLoad> {
+        self.engine.core_load(k)
+    }
+
+    /// The camera's counters, if the world has a camera.
+    pub fn camera_stats(&self) -> Option<FeedStats> {
+        self.camera.as_ref().map(|c| c.stats)
+    }
+
+    /// Ground-station counters.
+    pub fn ground_counters(&self) -> GroundCounters {
+        self.ground.counters
+    }
+
+    /// Ground-station protocol counters.
+    pub fn ground_stats(&self) -> radio_mac::Stats {
+        self.ground.stats()
+    }
+
+    /// Radio medium counters.
+    pub fn medium_stats(&self) -> MediumStats {
+        *self.medium.stats()
+    }
+
+    /// Bytes through every radio node (ground first, then the cars, then `user`).
+    pub fn node_counters(&self) -> &[NodeCounters] {
+        &self.node_counters
+    }
+
+    /// Events recorded since the last call (LBC resets, notices, failures).
+    pub fn take_events(&mut self) -> Vec<WorldEvent> {
+        std::mem::take(&mut self.events)
+    }
+
+    /// The firmware log of car `id` (decoded defmt lines), if it is in the world.
+    pub fn firmware_log(&self, id: u8) -> Option<Vec<String>> {
+        let k = self.ids.iter().position(|&i| i == id)?;
+        Some(self.engine.firmware_log(k))
+    }
+
+    /// Sends a console request to car `id` without waiting: `Ok(None)` when the ground
+    /// station is busy with another request (it carries one authenticated command at a time;
+    /// try again later), else the [`PendingReply`] to poll with [`World::poll_reply`].
+    pub fn try_request(
+        &mut self,
+        id: u8,
+        req: &Request,
+    ) -> Result<Option<PendingReply>, WorldError> {
+        self.ground.try_request(self.now, id, req)
+    }
+
+    /// The outcome of a request once it is known (given once).
+    pub fn poll_reply(&mut self, p: &PendingReply) -> Option<Result<Reply, WorldError>> {
+        self.ground.poll(p)
+    }
+
+    /// Sends a console request to car `id` and runs the world until its reply, for at most
+    /// `timeout` of world time.
+    pub fn request(
+        &mut self,
+        id: u8,
+        req: &Request,
+        timeout: Duration,
+    ) -> Result<Reply, WorldError> {
+        let deadline = self.now() + timeout;
+        let pending = loop {
+            if let Some(p) = self.try_request(id, req)? {
+                break p;
+            }
+            if self.now() >= deadline {
+                return Err(WorldError::Timeout { id });
+            }
+            self.run_for(Duration::from_millis(5));
+        };
+        loop {
+            if let Some(r) = self.poll_reply(&pending) {
+                return r;
+            }
+            if self.now() >= deadline {
+                return Err(WorldError::Timeout { id });
+            }
+            self.run_for(Duration::from_millis(1));
+        }
+    }
+
+    /// Stops every car now (also done on drop).
+    pub fn shutdown(mut self) {
+        self.engine.shutdown();
+    }
+}
+
+impl Drop for World {
+    fn drop(&mut self) {
+        self.engine.shutdown();
+    }
+}
