@@ -50,6 +50,9 @@ pub struct RunArgs {
     /// --radio unix:<run dir>/ground.sock` (printed at start).
     #[arg(long)]
     realtime: bool,
+    /// Profile car ID's processor by function (iss): `profile-car<ID>.csv` in the outputs.
+    #[arg(long = "profile-car", value_name = "ID")]
+    profile_car: Vec<u8>,
 }
 
 pub fn run(cmd: ExperimentCommand) -> ExitCode {
@@ -90,6 +93,15 @@ fn run_one(args: &RunArgs) -> ExitCode {
         exp.threads = usize::from(t);
     }
     exp.realtime |= args.realtime;
+    for &id in &args.profile_car {
+        if !exp.cars.iter().any(|c| c.id == id) {
+            eprintln!("error: --profile-car {id}: no such car in {}", exp.name);
+            return ExitCode::FAILURE;
+        }
+        if !exp.profile_cars.contains(&id) {
+            exp.profile_cars.push(id);
+        }
+    }
     let firmware = match &args.firmware {
         Some(p) => p.clone(),
         None => match exp.engine.default_firmware() {

@@ -3,6 +3,7 @@
 //! only ends a WFI idle, it carries no work of its own.
 
 use crate::mmio::RegisterBus;
+use core::cell::Cell;
 
 /// Register offsets for hart 0.
 pub mod reg {
@@ -12,17 +13,55 @@ pub mod reg {
     pub const MTIME: usize = 0xBFF8;
 }
 
+/// The last tick-to-microsecond conversion: `ticks * num = micros * den + rem`.
+#[derive(Debug, Clone, Copy)]
+struct Conversion {
+    ticks: u64,
+    micros: u64,
+    rem: u32,
+}
+
 /// The machine timer and the rate `mtime` counts at.
+///
+/// [`Clint::micros`] converts incrementally from its previous answer with one 32-bit
+/// multiply and divide (`1e6 / hz` as a reduced fraction `num / den`), exactly; only a jump
+/// of more than a few hundred milliseconds since the last call takes the 64-bit division.
+/// On the soft core a 64-bit division is a software loop of several hundred cycles, and the
+/// program reads the time many times per loop.
 #[derive(Debug)]
 pub struct Clint<B> {
     bus: B,
     hz: u32,
+    num: u32,
+    den: u32,
+    last: Cell<Conversion>,
+}
+
+const fn gcd(mut a: u32, mut b: u32) -> u32 {
+    while b != 0 {
+        let t = a % b;
+        a = b;
+        b = t;
+    }
+    a
 }
 
 impl<B: RegisterBus> Clint<B> {
     /// A timer whose `mtime` counts at `hz` (must be nonzero).
     pub const fn new(bus: B, hz: u32) -> Self {
-        Self { bus, hz }
+        let hz = if hz == 0 { 1 } else { hz };
+        let g = gcd(1_000_000, hz);
+        Self {
+            bus,
+            hz,
+            num: 1_000_000 / g,
+            den: hz / g,
+            last: Cell::new(Conversion {
+                ticks: 0,
+                micros: 0,
+                rem: 0,
+            }),
+        }
     }
 
     /// The `mtime` rate in Hz.
@@ -42,9 +81,36 @@ impl<B: RegisterBus> Clint<B> {
         }
     }
 
-    /// Current time in microseconds since reset.
+    /// Current time in microseconds since reset (`floor(ticks * 1e6 / hz)`, exactly).
     pub fn micros(&self) -> u64 {
-        ticks_to_micros(self.ticks(), self.hz)
+        self.micros_at(self.ticks())
+    }
+
+    /// `ticks` in microseconds, from the previous conversion when it is close.
+    fn micros_at(&self, ticks: u64) -> u64 {
+        let last = self.last.get();
+        let step_max = u64::from(u32::MAX.saturating_sub(self.den) / self.num.max(1));
+        let m = match ticks.checked_sub(last.ticks) {
+            Some(d) if d <= step_max => {
+                // d * num + rem < 2^32 by the bound on d.
+                let x = d as u32 * self.num + last.rem;
+                self.last.set(Conversion {
+                    ticks,
+                    micros: last.micros + u64::from(x / self.den),
+                    rem: x % self.den,
+                });
+                return last.micros + u64::from(x / self.den);
+            }
+            _ => ticks_to_micros(ticks, self.hz),
+        };
+        let rem =
+            ((ticks % u64::from(self.den)) * u64::from(self.num) % u64::from(self.den)) as u32;
+        self.last.set(Conversion {
+            ticks,
+            micros: m,
+            rem,
+        });
+        m
     }
 
     /// Current time in milliseconds since reset.
@@ -142,6 +208,23 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn incremental_micros_are_exact(
+            start in 0u64..(1 << 48),
+            steps in proptest::collection::vec(0u64..20_000_000, 1..40),
+            hz in prop_oneof![Just(14_745_600u32), Just(10_000_000u32), 1_000_000u32..200_000_000],
+        ) {
+            let bus = RamBus::new(0xC000);
+            let clint = Clint::new(&bus, hz);
+            let mut t = start;
+            for d in steps {
+                t += d;
+                prop_assert_eq!(clint.micros_at(t), ticks_to_micros(t, hz), "t {} hz {}", t, hz);
+            }
+            // Backwards (a reset of mtime) falls back to the exact division too.
+            prop_assert_eq!(clint.micros_at(start / 2), ticks_to_micros(start / 2, hz));
+        }
+
         #[test]
         fn micros_round_trip_loses_under_a_microsecond(us in 0u64..(1 << 50), hz in 1_000_000u32..) {
             let back = ticks_to_micros(micros_to_ticks(us, hz), hz);

@@ -9,7 +9,7 @@ use super::{
 };
 use qemu_harness::{LineDecoder, LogFormat};
 use rayon::prelude::*;
-use soc_model::{Halt, Output, Port, Soc, Stamped, CLOCK_HZ};
+use soc_model::{Halt, Output, Port, Retired, Soc, Stamped, CLOCK_HZ};
 use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -74,9 +74,24 @@ impl fmt::Display for IssError {
 
 impl std::error::Error for IssError {}
 
+/// The WFI instruction.
+const WFI: u32 = 0x1050_0073;
+/// Profile key of the cycles spent waiting in WFI.
+const WAITING: u32 = u32::MAX;
+
+/// Cycles spent per instruction address of one car (see [`IssEngine::profile`]).
+#[derive(Debug, Default, Clone)]
+struct Profile {
+    cycles: HashMap<u32, u64>,
+    last: Option<u64>,
+    trace: Vec<Retired>,
+}
+
 /// One car on the model.
 struct IssCar {
     soc: Soc,
+    profile: Option<Profile>,
+    elf: Arc<Vec<u8>>,
     out: Vec<Stamped>,
     console: Vec<u8>,
     log_format: Arc<LogFormat>,
@@ -98,7 +113,29 @@ impl IssCar {
             }
         }
         self.out.clear();
-        let halt = self.soc.run_until(cycle_by(until), &mut self.out);
+        let halt = match self.profile.as_mut() {
+            None => self.soc.run_until(cycle_by(until), &mut self.out),
+            Some(p) => {
+                p.trace.clear();
+                let h = self
+                    .soc
+                    .run_until_traced(cycle_by(until), &mut self.out, &mut p.trace);
+                for r in &p.trace {
+                    // Each instruction is charged the cycles since the one before it retired
+                    // (so waiting in WFI is charged to the WFI, interrupt entry to the
+                    // handler's first instruction).
+                    let spent = r.cycle - p.last.unwrap_or(r.cycle).min(r.cycle);
+                    let at = if r.retire.insn == WFI {
+                        WAITING
+                    } else {
+                        r.retire.pc_rdata
+                    };
+                    *p.cycles.entry(at).or_default() += spent;
+                    p.last = Some(r.cycle);
+                }
+                h
+            }
+        };
         for s in &self.out {
             let t = time_of(s.cycle);
             match s.output {
@@ -164,6 +201,7 @@ impl fmt::Debug for IssEngine {
 struct Image {
     soc: Soc,
     log_format: Arc<LogFormat>,
+    bytes: Arc<Vec<u8>>,
 }
 
 fn load_image(path: &Path) -> Result<Image, IssError> {
@@ -183,13 +221,15 @@ fn load_image(path: &Path) -> Result<Image, IssError> {
     Ok(Image {
         soc,
         log_format: Arc::new(log_format),
+        bytes: Arc::new(bytes),
     })
 }
 
 impl IssEngine {
     /// Loads `firmware[k]` for car `k` (one load per distinct file) and prepares `threads`
-    /// worker threads (1: the calling thread steps every car).
-    pub fn new(firmware: &[PathBuf], threads: usize) -> Result<Self, IssError> {
+    /// worker threads (1: the calling thread steps every car). Cars whose index is in
+    /// `profiled` record where their processor spends its cycles ([`IssEngine::profile`]).
+    pub fn new(firmware: &[PathBuf], threads: usize, profiled: &[usize]) -> Result<Self, IssError> {
         let mut images: HashMap<&Path, Image> = HashMap::new();
         let mut cars = Vec::with_capacity(firmware.len());
         for path in firmware {
@@ -199,6 +239,8 @@ impl IssEngine {
             let img = &images[path.as_path()];
             cars.push(IssCar {
                 soc: img.soc.clone(),
+                profile: profiled.contains(&cars.len()).then(Profile::default),
+                elf: img.bytes.clone(),
                 out: Vec::new(),
                 console: Vec::new(),
                 log_format: img.log_format.clone(),
@@ -218,6 +260,55 @@ impl IssEngine {
             None
         };
         Ok(IssEngine { cars, pool })
+    }
+}
+
+/// Where a profiled car's processor spent its cycles, by function (symbols of its ELF), the
+/// largest first: `(cycles, share of all cycles, function)`.
+pub fn profile_table(elf: &[u8], cycles: &HashMap<u32, u64>) -> Vec<(u64, f64, String)> {
+    use object::{Object, ObjectSymbol};
+    let mut syms: Vec<(u64, u64, String)> = match object::File::parse(elf) {
+        Ok(obj) => obj
+            .symbols()
+            .filter(|s| s.size() > 0)
+            .map(|s| {
+                let name = s.name().unwrap_or("?");
+                (
+                    s.address(),
+                    s.size(),
+                    format!("{:#}", rustc_demangle::demangle(name)),
+                )
+            })
+            .collect(),
+        Err(_) => Vec::new(),
+    };
+    syms.sort();
+    let mut by_fn: HashMap<String, u64> = HashMap::new();
+    for (&pc, &c) in cycles {
+        let pc = u64::from(pc);
+        let i = syms.partition_point(|s| s.0 <= pc);
+        let name = match i.checked_sub(1).map(|j| &syms[j]) {
+            _ if pc == u64::from(WAITING) => "(asleep in WFI)".to_owned(),
+            Some((a, n, name)) if pc < a + n => name.clone(),
+            _ => format!("{pc:#010x}"),
+        };
+        *by_fn.entry(name).or_default() += c;
+    }
+    let total: u64 = by_fn.values().sum::<u64>().max(1);
+    let mut rows: Vec<(u64, f64, String)> = by_fn
+        .into_iter()
+        .map(|(n, c)| (c, c as f64 / total as f64, n))
+        .collect();
+    rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.2.cmp(&b.2)));
+    rows
+}
+
+impl IssEngine {
+    /// Car `k`'s processor profile so far (see [`profile_table`]), if it is profiled.
+    pub fn profile(&self, k: usize) -> Option<Vec<(u64, f64, String)>> {
+        let car = self.cars.get(k)?;
+        let p = car.profile.as_ref()?;
+        Some(profile_table(&car.elf, &p.cycles))
     }
 }
 
@@ -268,6 +359,21 @@ impl CarEngine for IssEngine {
         let mut lines = Vec::new();
         dec.push(&car.console, Instant::now(), &mut lines);
         lines.iter().map(|l| l.to_string()).collect()
+    }
+
+    fn profile(&self, k: usize) -> Option<Vec<(u64, f64, String)>> {
+        IssEngine::profile(self, k)
+    }
+
+    fn kill(&mut self, k: usize, why: &str) {
+        if let Some(c) = self.cars.get_mut(k) {
+            if c.failure.is_none() {
+                c.failure = Some(Failure {
+                    at: c.ran_to,
+                    kind: FailureKind::Killed { why: why.into() },
+                });
+            }
+        }
     }
 
     fn shutdown(&mut self) {}

@@ -145,6 +145,14 @@ pub trait CarEngine: Send {
     fn core_load(&self, k: usize) -> Option<CoreLoad>;
     /// Car `k`'s decoded firmware log so far.
     fn firmware_log(&self, k: usize) -> Vec<String>;
+    /// Where car `k`'s processor spent its cycles, by function, largest first (profiled
+    /// cars of engines that count cycles).
+    fn profile(&self, _k: usize) -> Option<Vec<(u64, f64, String)>> {
+        None
+    }
+    /// Ends car `k`'s firmware now, as a crash would (`kill -9` of its emulator); the
+    /// world then treats it as failed.
+    fn kill(&mut self, k: usize, why: &str);
     /// Stops every car now (kills processes); idempotent.
     fn shutdown(&mut self);
 }

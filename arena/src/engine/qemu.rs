@@ -290,6 +290,13 @@ impl CarEngine for QemuEngine {
             .unwrap_or_default()
     }
 
+    fn kill(&mut self, k: usize, _why: &str) {
+        if let Some(c) = self.cars.get_mut(k) {
+            // The next quantum sees the process gone and records the failure.
+            let _ = c.qemu.kill();
+        }
+    }
+
     fn shutdown(&mut self) {
         for c in &mut self.cars {
             let _ = c.qemu.kill();

@@ -316,6 +316,9 @@ impl Experiment {
                 });
             }
         }
+        if let Some(&id) = raw.profile_cars.iter().find(|id| !ids.contains(id)) {
+            return Err(Invalid::CarId { id });
+        }
         let threads = raw.threads.unwrap_or(1);
         if !(1..=MAX_THREADS).contains(&threads) {
             return Err(Invalid::OutOfRange {
@@ -377,6 +380,7 @@ impl Experiment {
             threads: threads as usize,
             realtime: false,
             on_car_failure: raw.on_car_failure.unwrap_or_default(),
+            profile_cars: raw.profile_cars,
         };
         e.check_faults()?;
         Ok(e)

@@ -77,6 +77,9 @@ pub struct Experiment {
     pub realtime: bool,
     /// What happens when a car's firmware stops running.
     pub on_car_failure: FailurePolicy,
+    /// Cars whose processor time is profiled by function (`profile-car<ID>.txt`; virtual-time
+    /// engine only).
+    pub profile_cars: Vec<u8>,
 }
 
 /// What the world and the run do when a car's firmware stops (trap, exit, stuck processor,
@@ -372,6 +375,7 @@ impl Experiment {
         cfg.threads = self.threads;
         cfg.realtime = self.realtime;
         cfg.stop_failed_cars = self.on_car_failure != FailurePolicy::Ignore;
+        cfg.profile_cars.clone_from(&self.profile_cars);
         cfg.radio = MediumParams {
             loss_probability: self.faults.radio_loss,
             ..MediumParams::default()

@@ -22,6 +22,8 @@ pub(super) struct RawExperiment {
     pub(super) engine: Option<EngineName>,
     pub(super) threads: Option<u64>,
     pub(super) on_car_failure: Option<FailurePolicy>,
+    #[serde(default)]
+    pub(super) profile_cars: Vec<u8>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]

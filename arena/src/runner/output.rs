@@ -156,6 +156,15 @@ pub(super) fn finish(
     };
 
     log.finish()?;
+    for &id in &exp.profile_cars {
+        if let Some(rows) = world.profile(id) {
+            let mut text = String::from("cycles,share,function\n");
+            for (c, share, name) in rows {
+                text.push_str(&format!("{c},{share:.5},\"{}\"\n", name.replace('"', "'")));
+            }
+            write_file(&out.join(format!("profile-car{id}.csv")), &text)?;
+        }
+    }
     let text = serde_json::to_string_pretty(&summary).unwrap_or_default();
     write_file(&out.join("summary.json"), &text)?;
     write_file(

@@ -163,6 +163,8 @@ pub struct WorldConfig {
     pub quantum: Duration,
     /// Stop a car's vehicle (as an emergency stop would) when its firmware stops running.
     pub stop_failed_cars: bool,
+    /// Cars whose processor time is profiled by function (virtual-time engine).
+    pub profile_cars: Vec<u8>,
 }
 
 impl WorldConfig {
@@ -183,6 +185,7 @@ impl WorldConfig {
             realtime: false,
             quantum: DEFAULT_QUANTUM,
             stop_failed_cars: true,
+            profile_cars: Vec::new(),
         }
     }
 }
@@ -411,7 +414,16 @@ impl World {
             .collect();
         let mut engine: Box<dyn CarEngine> = match cfg.engine {
             EngineKind::Iss => {
-                Box::new(IssEngine::new(&firmware, cfg.threads.max(1)).map_err(WorldError::Iss)?)
+                let profiled: Vec<usize> = ids
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, id)| cfg.profile_cars.contains(id))
+                    .map(|(k, _)| k)
+                    .collect();
+                Box::new(
+                    IssEngine::new(&firmware, cfg.threads.max(1), &profiled)
+                        .map_err(WorldError::Iss)?,
+                )
             }
             EngineKind::Qemu => {
                 let cars: Vec<(u8, PathBuf)> = ids.iter().copied().zip(firmware).collect();
@@ -787,6 +799,22 @@ impl World {
     /// Car `k`'s processor load (virtual-time engine).
     pub fn core_load(&self, k: usize) -> Option<CoreLoad> {
         self.engine.core_load(k)
+    }
+
+    /// Where car `id`'s processor spent its cycles so far, by function, largest first:
+    /// `(cycles, share, function)` (cars in [`WorldConfig::profile_cars`] on the virtual-time
+    /// engine).
+    pub fn profile(&self, id: u8) -> Option<Vec<(u64, f64, String)>> {
+        let k = self.ids.iter().position(|&i| i == id)?;
+        self.engine.profile(k)
+    }
+
+    /// Ends car `id`'s firmware now, as a crash would (the world then stops its vehicle,
+    /// unless told not to, and reports it). For tests and fault experiments.
+    pub fn kill_car(&mut self, id: u8, why: &str) {
+        if let Some(k) = self.ids.iter().position(|&i| i == id) {
+            self.engine.kill(k, why);
+        }
     }
 
     /// The camera's counters, if the world has a camera.
