@@ -290,6 +290,12 @@ pub enum EepromFileError {
         /// 1-based line number.
         line: usize,
     },
+    /// Another process holds the file's lock: two emulators on one file would silently lose
+    /// each other's writes.
+    Locked {
+        /// The lock file (`FILE.lock`) held by the other process.
+        lock: PathBuf,
+    },
 }
 
 impl fmt::Display for EepromFileError {
@@ -316,6 +322,12 @@ impl fmt::Display for EepromFileError {
             Self::TrailingData { line } => {
                 write!(f, "EEPROM file has data after the checksum (line {line})")
             }
+            Self::Locked { lock } => write!(
+                f,
+                "EEPROM file is in use by another process (it holds the lock {}); \
+                 stop that emulator or give this one another --eeprom file",
+                lock.display()
+            ),
         }
     }
 }
@@ -366,25 +378,38 @@ impl EepromStore for MemoryStore {
 }
 
 /// Keeps the committed image in a file, replaced atomically on each commit.
+///
+/// The store holds an exclusive advisory lock (`flock`) on `FILE.lock` beside the image for
+/// as long as it lives, so a second process opening the same file is refused with
+/// [`EepromFileError::Locked`] instead of both silently overwriting each other's commits. The
+/// lock file itself is left in place (it is empty); the lock ends with the process.
 #[derive(Debug)]
 pub struct FileStore {
     path: PathBuf,
+    /// The open lock file; dropping it releases the lock.
+    _lock: File,
     /// Pause between writing the first and second half of the temporary file; a test hook that
     /// widens the window in which a kill lands in the middle of a commit.
     write_pause: Option<Duration>,
 }
 
 impl FileStore {
-    /// Opens the store at `path`: loads the image there, or writes `default` (atomically) when
-    /// the file does not exist. A file that exists but does not parse is an error.
+    /// Opens the store at `path`: takes the file's lock (another process holding it is
+    /// [`EepromFileError::Locked`]), then loads the image there, or writes `default`
+    /// (atomically) when the file does not exist. A file that exists but does not parse is an
+    /// error.
     pub fn open(
         path: impl Into<PathBuf>,
         default: &EepromImage,
     ) -> Result<(Self, EepromImage), EepromFileError> {
+        let path = path.into();
+        let lock = Self::lock(&path)?;
         let store = Self {
-            path: path.into(),
+            path,
+            _lock: lock,
             write_pause: None,
         };
+        // Only once the lock is held: another live process's temporary file is not stale.
         store.remove_stale_temp_files();
         match fs::read_to_string(&store.path) {
             Ok(text) => {
@@ -397,6 +422,34 @@ impl FileStore {
                 Ok((store, *default))
             }
             Err(e) => Err(e.into()),
+        }
+    }
+
+    /// The lock file of the image at `path`: `FILE.lock` in the same directory.
+    pub fn lock_path(path: &Path) -> PathBuf {
+        let mut name = path
+            .file_name()
+            .map(|n| n.to_os_string())
+            .unwrap_or_default();
+        name.push(".lock");
+        path.with_file_name(name)
+    }
+
+    fn lock(path: &Path) -> Result<File, EepromFileError> {
+        use rustix::fs::{flock, FlockOperation};
+        let lock_path = Self::lock_path(path);
+        let file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&lock_path)?;
+        match flock(&file, FlockOperation::NonBlockingLockExclusive) {
+            Ok(()) => Ok(file),
+            Err(e) if e == rustix::io::Errno::WOULDBLOCK => {
+                Err(EepromFileError::Locked { lock: lock_path })
+            }
+            Err(e) => Err(EepromFileError::Io(e.into())),
         }
     }
 
@@ -557,10 +610,20 @@ mod tests {
         let mut changed = img;
         changed.set(0x21, 0x1234);
         store.commit(&changed).unwrap();
-        let (_, reloaded) = FileStore::open(&path, &EepromImage::factory(1)).unwrap();
+        drop(store);
+        let (store, reloaded) = FileStore::open(&path, &EepromImage::factory(1)).unwrap();
         assert_eq!(reloaded, changed);
-        let leftovers: Vec<_> = fs::read_dir(dir.path()).unwrap().collect();
-        assert_eq!(leftovers.len(), 1, "temporary file left behind");
+        drop(store);
+        let mut leftovers: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        leftovers.sort();
+        assert_eq!(
+            leftovers,
+            ["car.eeprom", "car.eeprom.lock"],
+            "temporary file left behind"
+        );
         // A stale temporary file from a killed process is cleaned up on open.
         let stale = dir.path().join("car.eeprom.tmp.99999");
         fs::write(&stale, "almc-lbc-eeprom 1\n00 00").unwrap();
@@ -578,6 +641,26 @@ mod tests {
             FileStore::open(&path, &EepromImage::factory(1)),
             Err(EepromFileError::BadLine { line: 2 })
         ));
+    }
+
+    #[test]
+    fn a_second_store_on_the_same_file_is_refused_until_the_first_is_gone() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("car.eeprom");
+        let (first, _) = FileStore::open(&path, &EepromImage::factory(4)).unwrap();
+        match FileStore::open(&path, &EepromImage::factory(4)) {
+            Err(EepromFileError::Locked { lock }) => {
+                assert_eq!(lock, dir.path().join("car.eeprom.lock"))
+            }
+            other => panic!("{other:?}"),
+        }
+        drop(first);
+        let (_, image) = FileStore::open(&path, &EepromImage::factory(9)).unwrap();
+        assert_eq!(
+            image.car_id(),
+            4,
+            "the first store's image, not a new default"
+        );
     }
 
     proptest! {

@@ -3,7 +3,11 @@
 //! One client at a time is the UBC side of the UART (QEMU connects with
 //! `-chardev socket,id=lbc,path=PATH`). The LBC keeps running while no client is attached (a
 //! UART with nothing on the other end: what it sends is lost), and a new client can attach
-//! after the previous one left, as when QEMU restarts. Time is the host's monotonic clock.
+//! after the previous one left, as when QEMU restarts. A client that connects while another
+//! is attached waits; it takes the line over as soon as the attached one leaves or has sent
+//! nothing for [`IDLE_HANDOVER`], so an idle client never keeps another out. Every change of
+//! client starts a clean line ([`Lbc::line_break`]): half a message from the one that left is
+//! never completed by the next one's bytes. Time is the host's monotonic clock.
 
 use std::fmt;
 use std::io::{self, Read, Write};
@@ -24,6 +28,11 @@ pub const POLL_INTERVAL: Duration = Duration::from_millis(1);
 pub const MAX_INPUT_PER_POLL: usize = 64 * 1024;
 /// Output held back for a slow client before it is discarded, bytes.
 pub const MAX_PENDING_OUTPUT: usize = 64 * 1024;
+/// A waiting client takes the line over from an attached one that has sent nothing for this
+/// long. A UBC that only listens to the stream sends nothing either, so a second client does
+/// displace it after this time: one LBC has one UBC, and the newcomer is taken to be its
+/// replacement (a restarted QEMU whose old connection was never closed).
+pub const IDLE_HANDOVER: Duration = Duration::from_secs(1);
 
 /// Where to listen.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -213,7 +222,8 @@ impl Server {
     }
 
     /// Runs `lbc` in real time until `stop` is set. Emulator time continues from
-    /// [`Lbc::now_us`]. `on_log` receives the LBC's log entries and `on_event` connection events.
+    /// [`Lbc::now_us`]. `on_log` receives the LBC's log entries and `on_event` connection events
+    /// (a handover from an idle client to a waiting one is a `Disconnected` then a `Connected`).
     pub fn run(
         &self,
         lbc: &mut Lbc,
@@ -224,14 +234,28 @@ impl Server {
         let start = Instant::now();
         let base_us = lbc.now_us();
         let mut client: Option<Conn> = None;
+        // When the attached client last sent something (or attached).
+        let mut heard = Instant::now();
+        // The newest client that connected while another was attached.
+        let mut waiting: Option<Conn> = None;
         let mut pending: Vec<u8> = Vec::new();
         let mut inbuf = [0u8; 4096];
         let mut rx: Vec<u8> = Vec::new();
         while !stop.load(Ordering::Relaxed) {
+            // Take every connection out of the backlog; the newest one waits.
+            while let Some(c) = self.accept()? {
+                waiting = Some(c);
+            }
+            if client.is_some() && waiting.is_some() && heard.elapsed() >= IDLE_HANDOVER {
+                client = None;
+                on_event(ServerEvent::Disconnected);
+            }
             if client.is_none() {
-                if let Some(c) = self.accept()? {
+                if let Some(c) = waiting.take() {
                     client = Some(c);
+                    heard = Instant::now();
                     pending.clear();
+                    lbc.line_break();
                     on_event(ServerEvent::Connected);
                 }
             }
@@ -240,6 +264,9 @@ impl Server {
             let mut lost = false;
             if let Some(c) = client.as_mut() {
                 lost = read_available(c, &mut inbuf, &mut rx, MAX_INPUT_PER_POLL);
+            }
+            if !rx.is_empty() {
+                heard = Instant::now();
             }
             lbc.push_rx(now, &rx);
             lbc.step_until(now);
@@ -264,6 +291,7 @@ impl Server {
             if lost {
                 client = None;
                 pending.clear();
+                lbc.line_break();
                 on_event(ServerEvent::Disconnected);
             }
             std::thread::sleep(POLL_INTERVAL);

@@ -412,7 +412,10 @@ impl Lbc {
     /// The other end of the UART changed (a client left or another one attached): the bytes
     /// already received are parsed now, and a message left unfinished is dropped, so that the
     /// next sender starts on a clean line instead of completing someone else's half frame.
-    pub fn line_break(&mut self) {}
+    pub fn line_break(&mut self) {
+        self.parse_rx(u64::MAX);
+        self.parser = CommandParser::new();
+    }
 
     /// Runs the firmware and the physics up to `t_us`.
     pub fn step_until(&mut self, t_us: u64) {

@@ -220,8 +220,13 @@ impl Lbc {
     }
 
     pub(super) fn task_comm_parser(&mut self) {
+        self.parse_rx(self.now_us);
+    }
+
+    /// Parses the received bytes that arrived by `until_us`.
+    pub(super) fn parse_rx(&mut self, until_us: u64) {
         while let Some(&(t, b)) = self.rx.front() {
-            if t > self.now_us {
+            if t > until_us {
                 break;
             }
             self.rx.pop_front();
