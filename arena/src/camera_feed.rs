@@ -292,7 +292,7 @@ impl std::fmt::Display for FindError {
 impl std::error::Error for FindError {}
 
 /// Whether the process that owns world directory `name` (`almc-arena-<pid>-<n>`) is alive.
-fn owner_alive(name: &str) -> bool {
+pub(crate) fn owner_alive(name: &str) -> bool {
     let Some(pid) = name
         .strip_prefix(RUN_DIR_PREFIX)
         .and_then(|rest| rest.split('-').next())

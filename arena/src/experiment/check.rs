@@ -388,6 +388,17 @@ impl Experiment {
 
     fn check_faults(&self) -> Result<(), Invalid> {
         let f = &self.faults;
+        for c in &f.crash {
+            if !self.cars.iter().any(|e| e.id == c.car) {
+                return Err(Invalid::CarId { id: c.car });
+            }
+            if !non_negative(c.at_s) || c.at_s > MAX_DURATION_S {
+                return Err(Invalid::Fault {
+                    field: "crash.at_s",
+                    value: c.at_s,
+                });
+            }
+        }
         for (field, p) in [
             ("radio_loss", f.radio_loss),
             ("tracking_drop", f.tracking_drop),

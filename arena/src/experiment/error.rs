@@ -49,6 +49,8 @@ pub enum ExperimentError {
         /// Why.
         reason: String,
     },
+    /// Cancelled (Ctrl-C) before the maneuvers started.
+    Cancelled,
     /// An output could not be written.
     Write {
         /// The file.
@@ -259,6 +261,7 @@ impl fmt::Display for ExperimentError {
             Self::ManeuverRefused { id, reply } => {
                 write!(f, "car {id} did not start the maneuver: {reply}")
             }
+            Self::Cancelled => write!(f, "cancelled during bring-up"),
             Self::CarFailed { id, t, reason } => {
                 write!(f, "car {id} failed at {t:.3} s: {reason}")
             }

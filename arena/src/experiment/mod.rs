@@ -290,6 +290,18 @@ pub struct Faults {
     pub tracking_rate_hz: f64,
     /// LBC link faults (every car).
     pub lbc: LbcFaults,
+    /// Cars whose firmware dies during the maneuvers (as `kill -9` of its emulator would).
+    pub crash: Vec<Crash>,
+}
+
+/// A car's firmware killed at a time, to see what the world and the other cars do.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Crash {
+    /// The car.
+    pub car: u8,
+    /// Seconds after the first phase started.
+    pub at_s: f64,
 }
 
 impl Default for Faults {
@@ -302,6 +314,7 @@ impl Default for Faults {
             tracking_latency_ms: 10,
             tracking_rate_hz: 30.0,
             lbc: LbcFaults::default(),
+            crash: Vec::new(),
         }
     }
 }

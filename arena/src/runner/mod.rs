@@ -447,7 +447,10 @@ fn run_inner(
                 continue;
             }
         }
-        if world.now() > deadline || cancel.load(Ordering::Relaxed) {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(ExperimentError::Cancelled);
+        }
+        if world.now() > deadline {
             return Err(ExperimentError::BringUp { id, last: last[k] });
         }
         world.run_for(Duration::from_millis(300));
@@ -476,6 +479,7 @@ fn run_inner(
     let mut next_phase = 0;
     let mut finished = false;
     let mut aborted = false;
+    let mut crashed = vec![false; exp.faults.crash.len()];
     r.begin_phase(0);
     next_phase += 1;
     loop {
@@ -564,6 +568,13 @@ fn run_inner(
                     Some(false) => {}
                     None => finished = true,
                 }
+            }
+        }
+        for (c, done) in exp.faults.crash.iter().zip(crashed.iter_mut()) {
+            if !*done && now >= t0 + Duration::from_secs_f64(c.at_s) {
+                *done = true;
+                r.world
+                    .kill_car(c.car, &format!("crash injected at {:.3} s", c.at_s));
             }
         }
         if now >= next_progress {

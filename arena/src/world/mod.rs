@@ -374,6 +374,20 @@ impl fmt::Debug for World {
 
 static NEXT_WORLD: AtomicU64 = AtomicU64::new(0);
 
+/// Removes the run directories (sockets, RAM files) of worlds whose process is gone, as a
+/// killed run leaves them.
+fn remove_stale_run_dirs() {
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with(RUN_DIR_PREFIX) && !crate::camera_feed::owner_alive(&name) {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
+}
+
 /// Metres on the radio medium from a pose in mm.
 fn metres(p: &Pose) -> (f64, f64) {
     (p.x_mm / 1000.0, p.y_mm / 1000.0)
@@ -400,6 +414,7 @@ impl World {
         if cfg.quantum.is_zero() || cfg.quantum > Duration::from_millis(10) {
             return Err(WorldError::BadQuantum(cfg.quantum));
         }
+        remove_stale_run_dirs();
         let dir = std::env::temp_dir().join(format!(
             "{RUN_DIR_PREFIX}{}-{}",
             std::process::id(),
