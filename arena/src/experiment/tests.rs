@@ -444,3 +444,98 @@ fn shipped_experiments_parse() {
     }
     assert!(n >= 3);
 }
+
+#[test]
+fn every_number_is_checked_and_named() {
+    let bad = |from: &str, to: &str| {
+        assert!(TWO.contains(from), "{from}");
+        invalid(&TWO.replace(from, to))
+    };
+    for huge in ["1e308", "inf", "nan", "86401"] {
+        let e = bad("duration_s = 30", &format!("duration_s = {huge}"));
+        assert!(
+            matches!(
+                e,
+                Invalid::Duration
+                    | Invalid::OutOfRange {
+                        field: "duration_s",
+                        ..
+                    }
+            ),
+            "{huge}: {e:?}"
+        );
+    }
+    assert!(matches!(
+        bad("duration_s = 30", "duration_s = 30\nbringup_s = 1e9"),
+        Invalid::OutOfRange {
+            field: "bringup_s",
+            ..
+        }
+    ));
+    assert!(matches!(
+        bad("duration_s = 30", "duration_s = 30\nthreads = 0"),
+        Invalid::OutOfRange {
+            field: "threads",
+            ..
+        }
+    ));
+    for (field, value) in [
+        ("tracking_latency_ms", "99999999"),
+        ("tracking_noise_mm", "1e300"),
+        ("tracking_rate_hz", "nan"),
+    ] {
+        let e = bad(
+            "radio_loss = 0.2",
+            &format!("radio_loss = 0.2\n{field} = {value}"),
+        );
+        assert!(
+            matches!(e, Invalid::Fault { field: f, .. } if f == field),
+            "{field}: {e:?}"
+        );
+        assert!(e.to_string().contains(field), "{e}");
+    }
+    let e = bad("[faults.lbc]", "[[faults.crash]]\ncar = 9\nat_s = 1\n[faults.lbc]");
+    assert!(matches!(e, Invalid::CarId { id: 9 }), "{e:?}");
+    let e = bad("[faults.lbc]", "[[faults.crash]]\ncar = 1\nat_s = -1\n[faults.lbc]");
+    assert!(matches!(e, Invalid::Fault { field: "crash.at_s", .. }), "{e:?}");
+}
+
+#[test]
+fn names_stay_inside_the_output_folder() {
+    for name in ["../escape", "/etc/passwd", "..", ".hidden", "a/b", "a\\\\b", "", "sp ace"] {
+        let text = TWO.replace("name = \"two\"", &format!("name = \"{name}\""));
+        assert!(
+            matches!(invalid(&text), Invalid::Name { .. }),
+            "{name:?} accepted"
+        );
+    }
+    for name in ["two", "formation-wedge-four", "run_1.2"] {
+        let text = TWO.replace("name = \"two\"", &format!("name = \"{name}\""));
+        assert_eq!(Experiment::parse(&text).unwrap().name, name);
+    }
+}
+
+#[test]
+fn engine_threads_failure_policy_and_profiles_from_the_file() {
+    let text = TWO.replace(
+        "duration_s = 30",
+        "duration_s = 30\nengine = \"qemu\"\nthreads = 2\non_car_failure = \"abort\"\nprofile_cars = [2]",
+    );
+    let e = Experiment::parse(&text).unwrap();
+    assert_eq!(e.engine, EngineKind::Qemu);
+    assert_eq!((e.threads, e.on_car_failure), (2, FailurePolicy::Abort));
+    assert_eq!(e.profile_cars, vec![2]);
+    let cfg = e.world_config(Path::new("fw.elf"));
+    assert_eq!((cfg.engine, cfg.threads, cfg.profile_cars), (EngineKind::Qemu, 2, vec![2]));
+    let d = Experiment::parse(TWO).unwrap();
+    assert_eq!((d.engine, d.threads), (EngineKind::Iss, 1));
+    assert_eq!(d.on_car_failure, FailurePolicy::Stop);
+    assert!(matches!(
+        invalid(&TWO.replace("duration_s = 30", "duration_s = 30\nprofile_cars = [7]")),
+        Invalid::CarId { id: 7 }
+    ));
+    assert!(matches!(
+        Experiment::parse(&TWO.replace("duration_s = 30", "duration_s = 30\nengine = \"fpga\"")),
+        Err(ExperimentError::Parse(_))
+    ));
+}
