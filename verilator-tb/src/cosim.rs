@@ -5,6 +5,7 @@
 //! character time apart (115200 baud, 8N1) like a real line. The parties advance in slices
 //! shorter than a character time, so none sees another late by more than a fraction of a byte.
 
+use crate::golden::Retire;
 use crate::lockstep::{Checker, Mismatch};
 use crate::soc::{Event, Soc, Stamped, Uart, CHAR_CYCLES, CLOCK_HZ};
 use lbc_emu::Lbc;
@@ -89,6 +90,8 @@ pub struct LbcCosim {
     checker: Option<Checker>,
     mismatch: Option<Mismatch>,
     scratch: Vec<(u64, u8)>,
+    keep_records: bool,
+    records: Vec<(u64, Retire)>,
 }
 
 impl core::fmt::Debug for LbcCosim {
@@ -112,6 +115,8 @@ impl LbcCosim {
             checker: None,
             mismatch: None,
             scratch: Vec::new(),
+            keep_records: false,
+            records: Vec::new(),
         }
     }
 
@@ -121,6 +126,17 @@ impl LbcCosim {
     pub fn with_checker(mut self, checker: Checker) -> Self {
         self.checker = Some(checker);
         self
+    }
+
+    /// Keeps every retirement record with its cycle stamp (see [`LbcCosim::records`]).
+    pub fn with_records(mut self) -> Self {
+        self.keep_records = true;
+        self
+    }
+
+    /// The records kept so far (with [`LbcCosim::with_records`]).
+    pub fn records(&self) -> &[(u64, Retire)] {
+        &self.records
     }
 
     /// The first disagreement between the RTL and the golden model, if checking found one.
@@ -152,9 +168,12 @@ impl LbcCosim {
         let mut out = Vec::new();
         while self.soc.cycle() < end && self.mismatch.is_none() {
             let slice_end = (self.soc.cycle() + SLICE_CYCLES).min(end);
-            let (records, events) =
-                self.soc
-                    .batch(slice_end - self.soc.cycle(), self.checker.is_some(), false);
+            let rvfi = self.checker.is_some() || self.keep_records;
+            let (records, events) = self.soc.batch(slice_end - self.soc.cycle(), rvfi, false);
+            if self.keep_records {
+                self.records
+                    .extend(records.iter().map(|r| (r.cycle, r.retire)));
+            }
             if let Some(checker) = self.checker.as_mut() {
                 for rec in &records {
                     if let Err(m) = checker.check(rec) {

@@ -34,6 +34,8 @@ pub struct Run {
     pub cycles: u64,
     /// Every event of the run.
     pub events: Vec<Stamped<Event>>,
+    /// Every record checked with its cycle stamp, when asked for ([`Lockstep::keep_records`]).
+    pub records: Vec<(u64, Retire)>,
 }
 
 /// The model's memory: a RAM image plus the last device read of the RTL.
@@ -115,6 +117,7 @@ impl Default for Checker {
 pub struct Lockstep {
     soc: Soc,
     checker: Checker,
+    keep_records: bool,
 }
 
 impl Default for Lockstep {
@@ -210,6 +213,7 @@ impl Lockstep {
         Self {
             soc: Soc::new(),
             checker: Checker::new(),
+            keep_records: false,
         }
     }
 
@@ -234,6 +238,11 @@ impl Lockstep {
         ModelBus::ram_index(addr).map(|i| self.checker.bus.ram[i])
     }
 
+    /// Makes [`Lockstep::run`] return every record it checked, with its cycle stamp.
+    pub fn keep_records(&mut self) {
+        self.keep_records = true;
+    }
+
     /// The SoC, for stimulus.
     pub fn soc_mut(&mut self) -> &mut Soc {
         &mut self.soc
@@ -254,6 +263,7 @@ impl Lockstep {
         let mut events = Vec::new();
         let mut exit = None;
         let mut retired = 0;
+        let mut kept = Vec::new();
         let mut stimuli: Vec<(u64, Stimulus)> = stimuli.to_vec();
         stimuli.sort_by_key(|s| s.0);
         let mut next = 0;
@@ -285,6 +295,9 @@ impl Lockstep {
                     break 'run;
                 }
                 self.checker.check(rec)?;
+                if self.keep_records {
+                    kept.push((rec.cycle, rec.retire));
+                }
                 retired += 1;
             }
         }
@@ -294,6 +307,7 @@ impl Lockstep {
             retired,
             cycles: self.soc.cycle(),
             events,
+            records: kept,
         })
     }
 }

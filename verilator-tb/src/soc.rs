@@ -85,6 +85,23 @@ pub enum Event {
     Exit(Exit),
 }
 
+/// A byte queued for a UART receiver: what [`Soc::send_at`] was asked (the cycle the call was
+/// made in, the earliest cycle asked for) and the cycle it was scheduled for. Replaying the
+/// calls at the same cycles into another model of the SoC gives it the same input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RxSend {
+    /// [`Soc::cycle`] when `send_at` was called.
+    pub called_at: u64,
+    /// The UART.
+    pub uart: Uart,
+    /// The `at` argument.
+    pub at: u64,
+    /// The cycle the byte is presented to the receiver in.
+    pub scheduled: u64,
+    /// The byte.
+    pub byte: u8,
+}
+
 /// An event and the cycle it appeared in (cycles since reset was released).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Stamped<T> {
@@ -183,6 +200,7 @@ pub struct Soc {
     /// First cycle each UART's receive line is free again.
     rx_free: [u64; 2],
     ext_irq: bool,
+    rx_log: Vec<RxSend>,
 }
 
 impl Default for Soc {
@@ -218,6 +236,7 @@ impl Soc {
             sleep_cycles: 0,
             rx_free: [0; 2],
             ext_irq: false,
+            rx_log: Vec::new(),
         })
     }
 
@@ -314,7 +333,19 @@ impl Soc {
             let t = at.max(self.rx_free[i]).max(self.cycle);
             sim(self.model.rx(i as u8, t, b));
             self.rx_free[i] = t + CHAR_CYCLES;
+            self.rx_log.push(RxSend {
+                called_at: self.cycle,
+                uart,
+                at,
+                scheduled: t,
+                byte: b,
+            });
         }
+    }
+
+    /// Every byte queued for the receivers so far, in the order of the calls.
+    pub fn rx_log(&self) -> &[RxSend] {
+        &self.rx_log
     }
 
     /// Drives the test bench's external interrupt line.
@@ -366,6 +397,24 @@ impl Soc {
             })
             .collect();
         (b.records, events)
+    }
+
+    /// Like [`Soc::run`], and also returns every retirement record with the cycle it is
+    /// stamped with (the cycle after the instruction completed).
+    pub fn run_records(&mut self, max_cycles: u64) -> (Vec<(u64, Retire)>, Vec<Stamped<Event>>) {
+        const BATCH: u64 = 1 << 16;
+        let end = self.cycle + max_cycles;
+        let (mut recs, mut out) = (Vec::new(), Vec::new());
+        while self.cycle < end {
+            let (records, events) = self.batch((end - self.cycle).min(BATCH), true, false);
+            let stop = events.iter().any(|e| matches!(e.value, Event::Exit(_)));
+            recs.extend(records.into_iter().map(|r| (r.cycle, r.retire)));
+            out.extend(events);
+            if stop {
+                break;
+            }
+        }
+        (recs, out)
     }
 
     /// Runs until the program exits or `max_cycles` have passed; returns every event with its

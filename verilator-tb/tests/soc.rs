@@ -20,6 +20,7 @@ fn uart_init(p: &mut Prog, base: u8) {
 
 fn run_events(p: &Prog, rx: &[(Uart, &[u8])]) -> Vec<(u64, Event)> {
     let mut ls = Lockstep::new();
+    ls.keep_records();
     ls.load(RAM_BASE, &p.words).unwrap();
     for (u, bytes) in rx {
         ls.soc_mut().send_at(*u, 2000, bytes);
@@ -28,6 +29,8 @@ fn run_events(p: &Prog, rx: &[(Uart, &[u8])]) -> Vec<(u64, Event)> {
         .run(1_000_000, 2_000_000, &[])
         .unwrap_or_else(|m| panic!("{}", describe(&m)));
     assert_eq!(run.exit, Some(Exit::Pass));
+    let sent = ls.soc_mut().rx_log().to_vec();
+    check_model(&p.words, &[], &sent, &run);
     run.events.iter().map(|e| (e.cycle, e.value)).collect()
 }
 
@@ -132,12 +135,15 @@ fn uart_receive_interrupt_through_plic() {
     p.i(isa::blt(A1, T1, (sleep as i32) - (here as i32)));
     p.li(T1, map::SIM_CTRL).li(T2, 0x5555).i(isa::sw(T2, T1, 0));
     let mut ls = Lockstep::new();
+    ls.keep_records();
     ls.load(RAM_BASE, &p.words).unwrap();
     ls.soc_mut().send_at(Uart::Lbc, 2000, b"abc");
     let run = ls
         .run(1_000_000, 2_000_000, &[])
         .unwrap_or_else(|m| panic!("{}", describe(&m)));
     assert_eq!(run.exit, Some(Exit::Pass));
+    let sent = ls.soc_mut().rx_log().to_vec();
+    check_model(&p.words, &[], &sent, &run);
     let console: Vec<u8> = run
         .events
         .iter()
@@ -165,9 +171,11 @@ fn exit_codes() {
             .i(isa::sw(T1, T0, 0))
             .i(isa::jal(0, 0));
         let mut ls = Lockstep::new();
+        ls.keep_records();
         ls.load(RAM_BASE, &p.words).unwrap();
         let run = ls.run(100, 1000, &[]).unwrap();
         assert_eq!(run.exit, Some(want));
+        check_model(&p.words, &[], &[], &run);
     }
 }
 

@@ -1,9 +1,11 @@
 //! Program builder shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod stream;
+
 use verilator_tb::isa::{self, reg::*};
 use verilator_tb::lockstep::{Lockstep, Mismatch, Run, Stimulus};
-use verilator_tb::soc::{map, Exit, RAM_BASE};
+use verilator_tb::soc::{map, Event, Exit, RxSend, Stamped, Uart, RAM_BASE};
 
 /// A program assembled at RAM_BASE.
 #[derive(Debug, Default, Clone)]
@@ -50,15 +52,118 @@ pub fn run_pass(prog: &Prog) -> (Run, Lockstep) {
     run_with(prog, &[])
 }
 
+/// Runs `prog` in lockstep with the stimuli, demands a clean exit, and checks the
+/// cycle-accurate model (`soc_model`) against the run (see [`check_model`]).
 pub fn run_with(prog: &Prog, stimuli: &[(u64, Stimulus)]) -> (Run, Lockstep) {
     let mut ls = Lockstep::new();
+    ls.keep_records();
     ls.load(RAM_BASE, &prog.words).expect("program fits");
     let run = match ls.run(100_000, 1_000_000, stimuli) {
         Ok(r) => r,
         Err(m) => panic!("lockstep mismatch: {}", describe(&m)),
     };
     assert_eq!(run.exit, Some(Exit::Pass), "program did not pass: {run:?}");
+    let rx = ls.soc_mut().rx_log().to_vec();
+    check_model(&prog.words, stimuli, &rx, &run);
     (run, ls)
+}
+
+/// Runs the program on the cycle-accurate model with the same stimuli and receiver input
+/// (replayed at the cycles the RTL got them) and demands the RTL run's every retirement
+/// record with the same cycle stamp, the same events in the same cycles, and the same
+/// cycle count.
+pub fn check_model(words: &[u32], stimuli: &[(u64, Stimulus)], rx: &[RxSend], run: &Run) {
+    let mut m = soc_model::Soc::new();
+    m.load_words(RAM_BASE, words).expect("program fits");
+    // inputs in cycle order: stimuli apply before their cycle, sends at their call's cycle
+    let mut inputs: Vec<(u64, Option<Stimulus>, Option<RxSend>)> = stimuli
+        .iter()
+        .map(|(at, s)| (*at, Some(*s), None))
+        .chain(rx.iter().map(|r| (r.called_at, None, Some(*r))))
+        .collect();
+    inputs.sort_by_key(|i| i.0);
+    let (mut out, mut trace) = (Vec::new(), Vec::new());
+    for (at, stim, send) in inputs {
+        m.run_until_traced(at, &mut out, &mut trace);
+        if let Some(Stimulus::ExternalIrq(level)) = stim {
+            m.set_external_irq(level);
+        }
+        if let Some(r) = send {
+            m.send_at(model_port(r.uart), r.at, &[r.byte]);
+        }
+    }
+    let halt = m.run_until_traced(run.cycles, &mut out, &mut trace);
+    compare_records(&run.records, &trace);
+    let mut events = model_events(&out);
+    if let Some(soc_model::Halt::Exit { value }) = halt {
+        events.push((m.cycle(), Event::Exit(Exit::decode(value))));
+    }
+    let rtl: Vec<(u64, Event)> = run.events.iter().map(|e| (e.cycle, e.value)).collect();
+    assert_eq!(rtl, events, "events: RTL vs model");
+    assert_eq!(m.cycle(), run.cycles, "cycles: RTL vs model");
+}
+
+pub fn model_port(u: Uart) -> soc_model::Port {
+    match u {
+        Uart::Lbc => soc_model::Port::Lbc,
+        Uart::Radio => soc_model::Port::Radio,
+    }
+}
+
+/// The model's outputs as the RTL harness's events.
+pub fn model_events(out: &[soc_model::Stamped]) -> Vec<(u64, Event)> {
+    out.iter()
+        .map(|s| {
+            let e = match s.output {
+                soc_model::Output::Tx { port, byte } => Event::Tx {
+                    uart: match port {
+                        soc_model::Port::Lbc => Uart::Lbc,
+                        soc_model::Port::Radio => Uart::Radio,
+                    },
+                    byte,
+                },
+                soc_model::Output::Console(b) => Event::Console(b),
+            };
+            (s.cycle, e)
+        })
+        .collect()
+}
+
+/// The RTL's events without the exit, as pairs.
+pub fn rtl_events(events: &[Stamped<Event>]) -> Vec<(u64, Event)> {
+    events
+        .iter()
+        .filter(|e| !matches!(e.value, Event::Exit(_)))
+        .map(|e| (e.cycle, e.value))
+        .collect()
+}
+
+/// Demands the same records with the same stamps; reports the first difference with the
+/// records around it.
+pub fn compare_records(rtl: &[(u64, soc_model::Retire)], model: &[soc_model::Retired]) {
+    let n = rtl.len().min(model.len());
+    for k in 0..n {
+        let (c, r) = rtl[k];
+        let m = model[k];
+        if c != m.cycle || r != m.retire {
+            let from = k.saturating_sub(3);
+            let mut ctx = String::new();
+            for j in from..=k {
+                ctx += &format!(
+                    "\n  #{j}: rtl   @{} {:x?}\n       model @{} {:x?}",
+                    rtl[j].0, rtl[j].1, model[j].cycle, model[j].retire
+                );
+            }
+            panic!("record {k} differs (RTL vs model):{ctx}");
+        }
+    }
+    assert_eq!(
+        rtl.len(),
+        model.len(),
+        "record counts: RTL vs model (last RTL {:x?}, last model {:x?})",
+        rtl.last(),
+        model.last()
+    );
 }
 
 pub fn describe(m: &Mismatch) -> String {
