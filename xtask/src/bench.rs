@@ -13,6 +13,10 @@
 //!   frame, counted by the `bench_vision` firmware binary reading the frame in place from its
 //!   frame-grabber window (QEMU shared RAM written by the host, `-icount shift=0`).
 //!
+//! - `arena`: world seconds per wall second of N cars on the soft core's model in virtual time,
+//!   each car's state broadcasts delivered against the radio model's figure, and QEMU cars in
+//!   real time (`arena/tests/arena_bench.rs`).
+//!
 //! `--only NAME` runs one of them; `--out FILE` also writes the markdown to a file.
 
 use std::collections::BTreeMap;
@@ -70,7 +74,7 @@ pub enum Bench {
     Camera,
     /// Instructions per pixel of the vision pipeline on the firmware (QEMU).
     FwVision,
-    /// How many QEMU cars keep real time in the arena.
+    /// The arena: virtual-time speed, state delivery against the radio model, QEMU cars.
     Arena,
     /// Soft core: CPI on the firmware, simulation speed, LUT4 from yosys.
     Softcore,
@@ -96,7 +100,7 @@ impl Bench {
             Bench::Radio => "radio",
             Bench::Camera => "synthetic camera",
             Bench::FwVision => "vision on the firmware (instructions per pixel)",
-            Bench::Arena => "QEMU cars in real time",
+            Bench::Arena => "the arena: virtual-time speed, state delivery, QEMU cars",
             Bench::Softcore => "soft core",
         }
     }
@@ -540,34 +544,116 @@ fn fw_vision_table(figures: &[StageFigure], text_size: u64) -> Result<String> {
     Ok(md)
 }
 
-/// Car counts the arena benchmark tries.
-const ARENA_CARS: &str = "1,2,4,8,12,16";
+/// Car counts of the virtual-time speed benchmark.
+const ARENA_SPEED_CARS: &str = "4,16,64,100";
+/// Car counts of the state-delivery comparison with the radio model.
+const ARENA_DELIVERY_CARS: &str = "4,12,16";
+/// Car counts of the QEMU real-time capacity benchmark.
+const ARENA_QEMU_CARS: &str = "1,4,8,16";
+/// Goals: world seconds per wall second at 16 and at 100 cars; state delivery within this
+/// many points of the radio model, and at least this much at 12 cars.
+const SPEED_GOAL_16: f64 = 10.0;
+const SPEED_GOAL_100: f64 = 1.0;
+const DELIVERY_POINTS: f64 = 0.5;
+const DELIVERY_GOAL_12: f64 = 0.99;
 
-/// Boots N cars in QEMU (N from [`ARENA_CARS`]) and reports whether each keeps its 30 Hz
-/// stream, tracking and console; the benchmark is an ignored test of `arena`.
+/// The arena: virtual-time speed at 4..100 cars (formation, soft-core model), each car's state
+/// broadcasts delivered against the radio model's figure, and QEMU cars in real time.
 fn arena() -> Result<String> {
-    let elf = crate::fw::build("qemu_virt", true)?;
-    let text = ignored_test(
+    let softcore = crate::fw::build("softcore", true)?;
+    let qemu = crate::fw::build("qemu_virt", true)?;
+    let env = |k: &'static str, v: &'static str| (k, std::ffi::OsStr::new(v));
+    let speed = ignored_test_named(
         "arena",
         "arena_bench",
+        "virtual_time_speed",
         &[
-            ("ARENA_BENCH_N", std::ffi::OsStr::new(ARENA_CARS)),
-            ("UBC_FW_ELF", elf.as_os_str()),
+            env("ARENA_BENCH_N", ARENA_SPEED_CARS),
+            ("VTB_FIRMWARE", softcore.as_os_str()),
         ],
     )?;
-    let table: Vec<&str> = text.lines().filter(|l| l.starts_with('|')).collect();
-    if table.is_empty() {
-        bail!("the arena benchmark printed no table");
+    let delivery = ignored_test_named(
+        "arena",
+        "arena_bench",
+        "state_delivery",
+        &[
+            env("ARENA_DELIVERY_N", ARENA_DELIVERY_CARS),
+            ("VTB_FIRMWARE", softcore.as_os_str()),
+        ],
+    )?;
+    let realtime = ignored_test_named(
+        "arena",
+        "arena_bench",
+        "qemu_realtime_capacity",
+        &[
+            env("ARENA_QEMU_N", ARENA_QEMU_CARS),
+            ("UBC_FW_ELF", qemu.as_os_str()),
+        ],
+    )?;
+    let table = |text: &str| -> String {
+        text.lines()
+            .filter(|l| l.starts_with('|'))
+            .map(|l| format!("{l}\n"))
+            .collect()
+    };
+    let mut md =
+        String::from("## The arena\n\n### Virtual time: world seconds per wall second\n\n");
+    md.push_str(&table(&speed));
+    let all = |mode: &str| -> Vec<BTreeMap<String, String>> {
+        speed
+            .lines()
+            .chain(delivery.lines())
+            .filter_map(|l| l.trim().strip_prefix("figures:"))
+            .map(|rest| {
+                rest.split_whitespace()
+                    .filter_map(|kv| kv.split_once('='))
+                    .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                    .collect::<BTreeMap<_, _>>()
+            })
+            .filter(|f| f.get("mode").is_some_and(|m| m == mode))
+            .collect()
+    };
+    for (cars, goal) in [("16", SPEED_GOAL_16), ("100", SPEED_GOAL_100)] {
+        if let Some(f) = all("speed")
+            .iter()
+            .find(|f| f.get("cars").is_some_and(|c| c == cars))
+        {
+            let v = field(f, "speed")?;
+            let _ = writeln!(
+                md,
+                "\n{cars} cars: {v:.2} world s per wall s (goal >= {goal}): {}",
+                verdict(v >= goal)
+            );
+        }
     }
-    let mut md = String::from("## QEMU cars in real time\n\n");
-    for line in table {
-        md.push_str(line);
+    md.push_str("\n### State broadcasts delivered, arena against the radio model\n\n");
+    md.push_str(&table(&delivery));
+    for f in all("delivery") {
+        let (cars, arena, model) = (field(&f, "cars")?, field(&f, "arena")?, field(&f, "model")?);
+        let close = (arena - model).abs() * 100.0 <= DELIVERY_POINTS;
+        let _ = write!(
+            md,
+            "\n{cars:.0} cars: {:.2} % against {:.2} %: {}",
+            100.0 * arena,
+            100.0 * model,
+            verdict(close)
+        );
+        if cars == 12.0 {
+            let _ = write!(
+                md,
+                "; at least 99 %: {}",
+                verdict(arena >= DELIVERY_GOAL_12)
+            );
+        }
         md.push('\n');
     }
+    md.push_str("\n### QEMU cars in real time\n\n");
+    md.push_str(&table(&realtime));
     let _ = write!(
         md,
-        "\nReproduce: `ARENA_BENCH_N={ARENA_CARS} cargo test -p arena --release --test arena_bench \
-         -- --ignored --nocapture` (or `cargo xtask bench --only arena`)."
+        "\nReproduce: `cargo xtask bench --only arena`, or `ARENA_BENCH_N={ARENA_SPEED_CARS} cargo test -p arena --release \
+         --test arena_bench virtual_time_speed -- --ignored --nocapture` (likewise `state_delivery` with \
+         `ARENA_DELIVERY_N`, `qemu_realtime_capacity` with `ARENA_QEMU_N`)."
     );
     Ok(md)
 }
@@ -603,6 +689,16 @@ fn field(f: &BTreeMap<String, String>, key: &str) -> Result<f64> {
 /// Runs the ignored tests of one test target in release mode (how the host-driven benchmarks
 /// are packaged) and returns their standard output.
 fn ignored_test(package: &str, test: &str, env: &[(&str, &std::ffi::OsStr)]) -> Result<String> {
+    ignored_test_named(package, test, "", env)
+}
+
+/// Like [`ignored_test`], only the tests whose name contains `name`.
+fn ignored_test_named(
+    package: &str,
+    test: &str,
+    name: &str,
+    env: &[(&str, &std::ffi::OsStr)],
+) -> Result<String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
     let mut cmd = Command::new(cargo);
     cmd.args([
@@ -613,6 +709,7 @@ fn ignored_test(package: &str, test: &str, env: &[(&str, &std::ffi::OsStr)]) -> 
         "--test",
         test,
         "--",
+        name,
         "--ignored",
         "--nocapture",
     ]);
