@@ -418,7 +418,6 @@ fn request(
     ground: &Rc<RefCell<Ground>>,
     req: &Request,
 ) -> Reply {
-    eprintln!("{} us: request {req:?}", cosim.now_us());
     let h = ground.borrow_mut().request(cosim.now_us(), req);
     let mut reply = None;
     run_until(cosim, events, 3_000, |_, _| {
@@ -468,9 +467,9 @@ fn firmware_on_the_model_matches_the_rtl() {
     let reply = request(&mut cosim, &mut events, &ground, &go);
     assert_eq!(reply, Reply::GroupStarted);
     let pose0 = cosim.lbc.vehicle().pose();
-    let target = 12_000_000;
-    if cosim.soc.cycle() < target {
-        events.extend(cosim.run(target - cosim.soc.cycle()));
+    events.extend(cosim.run(u64::from(CLOCK_HZ) / 2));
+    if cosim.soc.cycle() < 10_000_000 {
+        events.extend(cosim.run(10_000_000 - cosim.soc.cycle()));
     }
     let pose1 = cosim.lbc.vehicle().pose();
     assert_ne!(
