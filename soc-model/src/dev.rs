@@ -386,8 +386,11 @@ pub(crate) struct Plic {
 
 impl Plic {
     fn best(&self, src: u16) -> (u8, u8) {
-        let pending = src & !self.in_service;
+        let pending = src & !self.in_service & self.enable;
         let (mut id, mut p) = (0u8, 0u8);
+        if pending == 0 {
+            return (0, 0);
+        }
         for i in 1..16u8 {
             let pi = self.prio[usize::from(i)];
             if pending & (1 << i) != 0 && self.enable & (1 << i) != 0 && pi > p {

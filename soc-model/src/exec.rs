@@ -18,7 +18,6 @@
 //! counted per instruction beyond those two numbers.
 
 use crate::dev::Access;
-use crate::fast::Burst;
 use crate::hart::Retire;
 use crate::{
     line, map, pend, AmoEx2, Halt, Output, Retired, Soc, Stamped, StuckReason, FRAME_WORDS,
@@ -188,7 +187,9 @@ impl Soc {
             p |= line::MSI;
         }
         let uart_can = |i: usize, src: u8| self.plic.can_signal(src) && self.uart[i].irq_possible();
-        if self.tb || self.tb_next.is_some() || uart_can(0, 10) || uart_can(1, 11) {
+        if self.mie & line::MEI != 0
+            && (self.tb || self.tb_next.is_some() || uart_can(0, 10) || uart_can(1, 11))
+        {
             p |= line::MEI;
         }
         p
@@ -327,7 +328,7 @@ impl Soc {
 
     /// One counter-carry cycle for the first pending carry (cycle low, cycle high, instret
     /// low, instret high).
-    fn cnt_cycle(&mut self) {
+    pub(crate) fn cnt_cycle(&mut self) {
         let c = self.core_at;
         let wrap = c == self.next_cyc_wrap;
         let p = self.pend;
@@ -409,17 +410,7 @@ impl Soc {
                 if self.stale.take().is_some() {
                     self.exec::<TRACE>(insn, until);
                 } else {
-                    let deadline = until
-                        .min(self.next_dev)
-                        .min(self.next_cyc_wrap + 1)
-                        .min(c + (self.ins_wrap_at - self.instret));
-                    match self.fast::<TRACE>(deadline) {
-                        Burst::Deadline => continue,
-                        Burst::Slow => {
-                            let insn = self.fetch(self.pc);
-                            self.exec::<TRACE>(insn, until);
-                        }
-                    }
+                    self.fast::<TRACE>(until);
                 }
             }
             if matches!(self.halt, Some(Halt::Exit { .. })) {
@@ -752,7 +743,7 @@ impl Soc {
                 if self.lines & self.mie != 0 {
                     self.commit::<TRACE>(c, insn, 0, 0, next, 1, 1, true, none);
                 } else {
-                    if self.mie & self.possible_lines() == 0 {
+                    if self.halt.is_none() && self.mie & self.possible_lines() == 0 {
                         self.stuck(StuckReason::WfiWithoutWakeup);
                     }
                     let target = until.min(self.next_dev);

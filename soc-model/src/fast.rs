@@ -199,14 +199,68 @@ pub(crate) enum Burst {
 }
 
 impl Soc {
+    /// The first cycle at which the executor must look up from straight-line execution: the
+    /// run's end, a possible change of the interrupt lines, a wrap of either counter.
+    fn deadline(&self, until: u64) -> u64 {
+        until
+            .min(self.next_dev)
+            .min(self.next_cyc_wrap + 1)
+            .min(self.core_at + (self.ins_wrap_at - self.instret))
+    }
+
+    /// Whether the run loop must take over: a counter carry pending, a stale fetch, an AMO's
+    /// second cycle, an interrupt to take, or the exit.
+    fn needs_run_loop(&self) -> bool {
+        self.pend != 0
+            || self.stale.is_some()
+            || self.amo_ex2.is_some()
+            || (self.mstatus_mie && self.lines & self.mie != 0)
+            || matches!(self.halt, Some(crate::Halt::Exit { .. }))
+    }
+
+    /// Runs instructions from `core_at` until `until`, the next cycle at which the devices
+    /// may change, or something the run loop handles (see [`Soc::needs_run_loop`]): decoded
+    /// instructions in bursts, the others and the counter carries in between.
+    pub(crate) fn fast<const TRACE: bool>(&mut self, until: u64) {
+        loop {
+            match self.burst::<TRACE>(self.deadline(until)) {
+                Burst::Deadline => {
+                    if self.core_at >= until
+                        || self.core_at >= self.next_dev
+                        || self.stale.is_some()
+                    {
+                        return;
+                    }
+                    // a counter wrapped: its carry cycles, then on
+                    self.settle();
+                    while self.pend != 0 && self.core_at < until {
+                        self.cnt_cycle();
+                    }
+                    if self.core_at >= until || self.core_at >= self.next_dev {
+                        return;
+                    }
+                }
+                Burst::Slow => {
+                    let insn = self.fetch(self.pc);
+                    self.exec::<TRACE>(insn, until);
+                    if self.needs_run_loop() {
+                        return;
+                    }
+                }
+            }
+            if self.core_at >= until {
+                return;
+            }
+        }
+    }
+
     /// Runs decoded instructions from `core_at` while the cycle is before `deadline`.
     #[inline(never)]
-    pub(crate) fn fast<const TRACE: bool>(&mut self, deadline: u64) -> Burst {
+    fn burst<const TRACE: bool>(&mut self, mut deadline: u64) -> Burst {
         let mut now = self.core_at;
         let mut pc = self.pc;
-        let mut instret = self.instret;
-        let start_retired = self.retired;
-        let mut retired = self.retired;
+        let start = self.instret;
+        let mut instret = start;
         let result = loop {
             if now >= deadline {
                 break Burst::Deadline;
@@ -231,7 +285,6 @@ impl Soc {
             let mut next = pc.wrapping_add(4);
             let mut cycles = 1;
             let mut mem = crate::exec::Mem::default();
-            let mut stop = false;
             let insn = if TRACE { self.ram[idx] } else { 0 };
             match op as u8 {
                 k::LI => self.x[rd] = imm,
@@ -363,7 +416,7 @@ impl Soc {
                         if i == idx + 1 {
                             // the next instruction was fetched before this write
                             self.stale = Some(old);
-                            stop = true;
+                            deadline = 0;
                         }
                     }
                     if TRACE {
@@ -395,7 +448,7 @@ impl Soc {
                     0
                 };
                 let r = Retire {
-                    order: retired + 1,
+                    order: self.retired + (instret - start) + 1,
                     insn,
                     trap: false,
                     intr: self.intr_flag,
@@ -420,20 +473,16 @@ impl Soc {
             pc = next;
             now += cycles;
             instret += 1;
-            retired += 1;
-            if stop {
-                break Burst::Deadline;
-            }
         };
-        if retired != start_retired {
+        if instret != start {
             self.intr_flag = false;
             self.last_stamp = now;
             self.cnt_wfi = false;
         }
         self.core_at = now;
         self.pc = pc;
+        self.retired += instret - start;
         self.instret = instret;
-        self.retired = retired;
         result
     }
 }

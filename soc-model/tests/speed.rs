@@ -10,6 +10,15 @@ use lbc_emu::{Lbc, LbcConfig};
 use soc_model::{isa, Output, Port, Soc, CHAR_CYCLES, CLOCK_HZ, RAM_BASE};
 use std::time::Instant;
 
+/// CPU time of this thread in nanoseconds (the machine is shared: wall time depends on the
+/// other load, CPU time much less).
+fn cpu_ns() -> u64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0)
+}
+
 #[test]
 #[ignore]
 fn busy_loop() {
@@ -33,18 +42,22 @@ fn busy_loop() {
     let cycles = 500_000_000;
     let mut out = Vec::new();
     let start = Instant::now();
+    let cpu0 = cpu_ns();
     soc.run_until(cycles, &mut out);
+    let cpu = (cpu_ns() - cpu0) as f64 / 1e9;
     let s = start.elapsed().as_secs_f64();
     let st = soc.stats();
     println!(
-        "busy loop: {} instructions in {cycles} cycles (CPI {:.3}) in {s:.2} s: {:.1} M instructions/s, {:.1} M cycles/s",
+        "busy loop: {} instructions in {cycles} cycles (CPI {:.3}); CPU {cpu:.2} s: {:.1} M \
+         instructions/s, {:.1} M cycles/s (wall {s:.2} s: {:.1} M instructions/s)",
         st.retired,
         cycles as f64 / st.retired as f64,
+        st.retired as f64 / cpu / 1e6,
+        cycles as f64 / cpu / 1e6,
         st.retired as f64 / s / 1e6,
-        cycles as f64 / s / 1e6
     );
     println!(
-        "figures: mode=model-busy cycles={cycles} instructions={} wall_s={s:.3}",
+        "figures: mode=model-busy cycles={cycles} instructions={} cpu_s={cpu:.3} wall_s={s:.3}",
         st.retired
     );
 }
@@ -75,6 +88,8 @@ fn firmware_with_lbc_emu() {
     let (mut out, mut tx) = (Vec::new(), Vec::new());
     let (mut lbc_bytes, mut console) = (0u64, 0u64);
     let start = Instant::now();
+    let cpu0 = cpu_ns();
+    let mut sends = Vec::new();
     while soc.cycle() < cycles {
         let end = (soc.cycle() + slice).min(cycles);
         out.clear();
@@ -101,25 +116,40 @@ fn firmware_with_lbc_emu() {
         }
         for &(t, b) in &tx {
             soc.send_at(Port::Lbc, us_to_cycles(t), &[b]);
+            sends.push((soc.cycle(), us_to_cycles(t), b));
         }
     }
     let s = start.elapsed().as_secs_f64();
+    let cpu = (cpu_ns() - cpu0) as f64 / 1e9;
+    // the model alone: the same input replayed into a fresh SoC
+    let mut again = Soc::new();
+    again.load_elf(&elf).unwrap();
+    let cpu0 = cpu_ns();
+    for &(called, at, b) in &sends {
+        again.run_until(called, &mut out);
+        again.send_at(Port::Lbc, at, &[b]);
+    }
+    again.run_until(cycles, &mut out);
+    let model = (cpu_ns() - cpu0) as f64 / 1e9;
+    assert_eq!(again.stats(), soc.stats(), "the replay is the same run");
     let st = soc.stats();
     assert!(lbc.streaming(), "the firmware brought the LBC up");
     let awake = st.cycles - st.sleep_cycles;
     println!(
         "firmware + lbc-emu: {cycles} cycles ({:.2} s of SoC time), {} instructions, {awake} awake \
-         cycles (CPI awake {:.3}), {lbc_bytes} LBC bytes sent, {console} console bytes, in \
-         {s:.3} s: {:.1} M cycles/s ({:.1}x real time), {:.1} M instructions/s",
+         cycles (CPI awake {:.3}), {lbc_bytes} LBC bytes sent, {console} console bytes; CPU \
+         {cpu:.3} s with lbc-emu ({:.0} M cycles/s, {:.0}x real time); the model alone \
+         {model:.3} s ({:.0} M cycles/s, {:.1} M instructions/s); wall {s:.3} s",
         cycles as f64 / CLOCK_HZ as f64,
         st.retired,
         awake as f64 / st.retired as f64,
-        cycles as f64 / s / 1e6,
-        cycles as f64 / CLOCK_HZ as f64 / s,
-        st.retired as f64 / s / 1e6
+        cycles as f64 / cpu / 1e6,
+        cycles as f64 / CLOCK_HZ as f64 / cpu,
+        cycles as f64 / model / 1e6,
+        st.retired as f64 / model / 1e6,
     );
     println!(
-        "figures: mode=model-firmware cycles={cycles} instructions={} sleep_cycles={} wall_s={s:.3}",
+        "figures: mode=model-firmware cycles={cycles} instructions={} sleep_cycles={} cpu_s={cpu:.3} model_cpu_s={model:.3} wall_s={s:.3}",
         st.retired, st.sleep_cycles
     );
 }
