@@ -13,6 +13,7 @@ mod ground;
 mod lbc;
 mod lbc_emu;
 mod radio;
+mod sweep;
 
 #[derive(Debug, Parser)]
 #[command(name = "almc", version, about = "ALMC micro-car testbed tool")]
@@ -41,6 +42,9 @@ enum Group {
     /// Experiments with QEMU cars in the simulated arena.
     #[command(subcommand)]
     Experiment(experiment::ExperimentCommand),
+    /// Parameter studies: an experiment over a grid of values and seeds, on every core or Slurm.
+    #[command(subcommand)]
+    Sweep(sweep::SweepCommand),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +55,7 @@ fn main() -> ExitCode {
         Group::Radio(cmd) => radio::run(cmd),
         Group::Car(args) => car::run(&args),
         Group::Experiment(cmd) => experiment::run(cmd),
+        Group::Sweep(cmd) => sweep::run(cmd),
         Group::Camera(cmd) => camera::run(cmd),
     }
 }
