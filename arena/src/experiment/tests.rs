@@ -494,15 +494,39 @@ fn every_number_is_checked_and_named() {
         );
         assert!(e.to_string().contains(field), "{e}");
     }
-    let e = bad("[faults.lbc]", "[[faults.crash]]\ncar = 9\nat_s = 1\n[faults.lbc]");
+    let e = bad(
+        "[faults.lbc]",
+        "[[faults.crash]]\ncar = 9\nat_s = 1\n[faults.lbc]",
+    );
     assert!(matches!(e, Invalid::CarId { id: 9 }), "{e:?}");
-    let e = bad("[faults.lbc]", "[[faults.crash]]\ncar = 1\nat_s = -1\n[faults.lbc]");
-    assert!(matches!(e, Invalid::Fault { field: "crash.at_s", .. }), "{e:?}");
+    let e = bad(
+        "[faults.lbc]",
+        "[[faults.crash]]\ncar = 1\nat_s = -1\n[faults.lbc]",
+    );
+    assert!(
+        matches!(
+            e,
+            Invalid::Fault {
+                field: "crash.at_s",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
 }
 
 #[test]
 fn names_stay_inside_the_output_folder() {
-    for name in ["../escape", "/etc/passwd", "..", ".hidden", "a/b", "a\\\\b", "", "sp ace"] {
+    for name in [
+        "../escape",
+        "/etc/passwd",
+        "..",
+        ".hidden",
+        "a/b",
+        "a\\\\b",
+        "",
+        "sp ace",
+    ] {
         let text = TWO.replace("name = \"two\"", &format!("name = \"{name}\""));
         assert!(
             matches!(invalid(&text), Invalid::Name { .. }),
@@ -526,7 +550,10 @@ fn engine_threads_failure_policy_and_profiles_from_the_file() {
     assert_eq!((e.threads, e.on_car_failure), (2, FailurePolicy::Abort));
     assert_eq!(e.profile_cars, vec![2]);
     let cfg = e.world_config(Path::new("fw.elf"));
-    assert_eq!((cfg.engine, cfg.threads, cfg.profile_cars), (EngineKind::Qemu, 2, vec![2]));
+    assert_eq!(
+        (cfg.engine, cfg.threads, cfg.profile_cars),
+        (EngineKind::Qemu, 2, vec![2])
+    );
     let d = Experiment::parse(TWO).unwrap();
     assert_eq!((d.engine, d.threads), (EngineKind::Iss, 1));
     assert_eq!(d.on_car_failure, FailurePolicy::Stop);
