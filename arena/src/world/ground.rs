@@ -113,21 +113,21 @@ impl Ground {
         self.station.poll(now_us);
         while let Some(ev) = self.station.next_event() {
             match ev {
-                Event::Request(inc) if !inc.id.broadcast => {
-                    // Cars report with requests (notices); an empty reply acknowledges them.
-                    if self.station.reply(inc.id, inc.tag, &[]).is_ok() {
-                        self.counters.notices += 1;
-                        if let Address::Car(id) = inc.id.from {
-                            let what = match console::Notice::decode(&inc.payload) {
-                                Ok(n) => format!("notice {n:?}"),
-                                Err(_) => format!("notice tag {}", inc.tag),
-                            };
-                            events.push(WorldEvent {
-                                at,
-                                car: id.get(),
-                                what,
-                            });
-                        }
+                // Cars report with requests (notices); an empty reply acknowledges them.
+                Event::Request(inc)
+                    if !inc.id.broadcast && self.station.reply(inc.id, inc.tag, &[]).is_ok() =>
+                {
+                    self.counters.notices += 1;
+                    if let Address::Car(id) = inc.id.from {
+                        let what = match console::Notice::decode(&inc.payload) {
+                            Ok(n) => format!("notice {n:?}"),
+                            Err(_) => format!("notice tag {}", inc.tag),
+                        };
+                        events.push(WorldEvent {
+                            at,
+                            car: id.get(),
+                            what,
+                        });
                     }
                 }
                 Event::State { from, state, .. } => {
