@@ -104,6 +104,12 @@ impl Uart {
         self.rx_q.push_back((at, byte));
     }
 
+    /// The cycles of the bytes queued for the receiver.
+    #[cfg(test)]
+    pub fn queued(&self) -> impl Iterator<Item = u64> + '_ {
+        self.rx_q.iter().map(|q| q.0)
+    }
+
     /// Clocks per character: 10 bits of 16 x divisor clocks.
     fn char_clk(&self) -> u32 {
         let d = u32::from(self.dlm) << 8 | u32::from(self.dll);

@@ -25,6 +25,8 @@ mod exec;
 mod fast;
 pub mod hart;
 pub mod isa;
+#[cfg(test)]
+mod tests;
 
 pub use elf::LoadError;
 pub use hart::Retire;
