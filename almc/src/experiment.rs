@@ -128,6 +128,16 @@ fn run_one(args: &RunArgs) -> ExitCode {
         exp.engine.name(),
         exp.duration_s
     );
+    if exp.realtime || exp.engine == EngineKind::Qemu {
+        // This process starts one world: its run directory is the first of this PID.
+        let ground = std::env::temp_dir()
+            .join(format!("almc-arena-{}-0", std::process::id()))
+            .join("ground.sock");
+        println!(
+            "real time: talk to a car with `almc car --radio unix:{} --car ID status`",
+            ground.display()
+        );
+    }
     let result = experiment::run(&exp, &firmware, &out, &mut |p| println!("{p}"), &cancel);
     match result {
         Ok(s) => {
