@@ -2,8 +2,8 @@
 //! `cars.2.x`. A segment that is a number indexes an array; tables the base experiment does not
 //! have are created on the way (so `faults.lbc.drop` works on a file without `[faults]`),
 //! arrays never are. A value replacing one the base experiment has must have its TOML type
-//! (an integer may stand for a float). Everything else (unknown keys, ranges, consistency) is
-//! the experiment checker's job, run on the result.
+//! (integers and floats stand for each other). Everything else (unknown keys, integer or
+//! fraction, ranges, consistency) is the experiment checker's job, run on the result.
 //!
 //! The path `cars` alone is special: the number of cars, taking the first N `[[cars]]`.
 
@@ -102,11 +102,14 @@ pub fn set(doc: &mut Value, path: &str, value: &Value) -> Result<(), PathProblem
     Ok(())
 }
 
-/// The value may replace `old`: same TOML type, or an integer for a float.
+/// The value may replace `old`: the same TOML type, or a number for a number (a file may
+/// write `duration_s = 3`; whether the field takes a fraction is the experiment checker's to
+/// say).
 fn check_type(old: &Value, new: &Value) -> Result<(), PathProblem> {
     let same = std::mem::discriminant(old) == std::mem::discriminant(new);
-    let widened = matches!((old, new), (Value::Float(_), Value::Integer(_)));
-    if same || widened {
+    let numbers = matches!(old, Value::Float(_) | Value::Integer(_))
+        && matches!(new, Value::Float(_) | Value::Integer(_));
+    if same || numbers {
         Ok(())
     } else {
         Err(PathProblem::WrongType {
@@ -171,8 +174,9 @@ speed_mm_s = 100
         assert_eq!(d["phases"][0]["speed_mm_s"], Value::Integer(50));
         set(&mut d, "cars.1.x", &Value::Integer(99)).unwrap();
         assert_eq!(d["cars"][1]["x"], Value::Integer(99));
-        set(&mut d, "duration_s", &Value::Float(2.5)).unwrap_err();
+        set(&mut d, "duration_s", &Value::Float(2.5)).unwrap();
         set(&mut d, "duration_s", &Value::Integer(3)).unwrap();
+        set(&mut d, "duration_s", &Value::String("3".into())).unwrap_err();
     }
 
     #[test]

@@ -116,7 +116,11 @@ pub fn write_plots(dir: &Path, plan: &Plan, rows: &[RunRow]) -> Result<Vec<PathB
         let svg = dir.join(format!("{stem}.svg"));
         let png = dir.join(format!("{stem}.png"));
         let axes = Axes {
-            title: format!("{} ({} runs per point)", plan.name, plan.seeds.len()),
+            title: format!(
+                "{}: {metric}, mean and 95 % interval of {} seeds",
+                plan.name,
+                plan.seeds.len()
+            ),
             x_name: &plan.plot_x,
             y_name: metric,
             categories: (!numeric).then_some(labels.as_slice()),
@@ -198,17 +202,22 @@ fn draw<B: DrawingBackend>(backend: B, axes: &Axes<'_>, series: &[Series]) -> Re
     mesh.x_desc(axes.x_name)
         .y_desc(axes.y_name)
         .x_label_formatter(&cat_label)
+        .y_label_formatter(&|y: &f64| crate::stats::num(*y))
+        .light_line_style(RGBColor(238, 238, 238))
         .label_style(("sans-serif", 14));
     if let Some(c) = axes.categories {
         mesh.x_labels(c.len() * 2 + 1);
     }
     mesh.draw().map_err(|e| err(&e))?;
+    // Lines side by side at one x are moved apart a little, so their error bars show.
+    let dodge = (x1 - x0) * 0.012;
     for (i, s) in series.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
+        let shift = (i as f64 - (series.len() as f64 - 1.0) / 2.0) * dodge;
         let means: Vec<(f64, f64)> = s
             .points
             .iter()
-            .filter_map(|(x, st)| st.mean.map(|m| (*x, m)))
+            .filter_map(|(x, st)| st.mean.map(|m| (x + shift, m)))
             .collect();
         let line = chart
             .draw_series(LineSeries::new(means.clone(), colour.stroke_width(2)))
@@ -224,7 +233,7 @@ fn draw<B: DrawingBackend>(backend: B, axes: &Axes<'_>, series: &[Series]) -> Re
         let bars = s.points.iter().filter_map(|(x, st)| {
             let (m, h) = (st.mean?, st.ci95?);
             Some(ErrorBar::new_vertical(
-                *x,
+                x + shift,
                 m - h,
                 m,
                 m + h,
@@ -237,6 +246,7 @@ fn draw<B: DrawingBackend>(backend: B, axes: &Axes<'_>, series: &[Series]) -> Re
     if series.iter().any(|s| !s.label.is_empty()) {
         chart
             .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font(("sans-serif", 14))
