@@ -15,7 +15,7 @@
 
 use crate::exec::divide;
 use crate::hart::Retire;
-use crate::{Retired, Soc, RAM_BASE, RAM_SIZE, X_SINK};
+use crate::{Retired, Soc, RAM_BASE, RAM_SIZE, RAM_WORDS, X_SINK};
 
 pub(crate) mod k {
     pub const SLOW: u8 = 1;
@@ -261,17 +261,35 @@ impl Soc {
         let mut pc = self.pc;
         let start = self.instret;
         let mut instret = start;
+        let Soc {
+            x,
+            ops,
+            ram,
+            stale,
+            trace,
+            intr_flag,
+            retired,
+            ..
+        } = self;
+        let (Ok(ops), Ok(ram)) = (
+            <&mut [u64; RAM_WORDS]>::try_from(&mut ops[..]),
+            <&mut [u32; RAM_WORDS]>::try_from(&mut ram[..]),
+        ) else {
+            return Burst::Slow;
+        };
         let result = loop {
             if now >= deadline {
                 break Burst::Deadline;
             }
-            let idx = (pc.wrapping_sub(RAM_BASE) >> 2) as usize;
-            let Some(&op0) = self.ops.get(idx) else {
+            let off = pc.wrapping_sub(RAM_BASE);
+            if off >= RAM_SIZE {
                 break Burst::Slow;
-            };
+            }
+            let idx = (off >> 2) as usize & (RAM_WORDS - 1);
+            let op0 = ops[idx];
             let op = if op0 == 0 {
-                let d = decode(self.ram[idx], pc);
-                self.ops[idx] = d;
+                let d = decode(ram[idx], pc);
+                ops[idx] = d;
                 d
             } else {
                 op0
@@ -280,45 +298,102 @@ impl Soc {
             let rs1 = ((op >> 16) & 63) as usize;
             let rs2 = ((op >> 24) & 63) as usize;
             let imm = (op >> 32) as u32;
-            let a = self.x[rs1];
-            let b = self.x[rs2];
+            let a = x[rs1];
+            let b = x[rs2];
             let mut next = pc.wrapping_add(4);
             let mut cycles = 1;
             let mut mem = crate::exec::Mem::default();
-            let insn = if TRACE { self.ram[idx] } else { 0 };
+            let insn = if TRACE { ram[idx] } else { 0 };
+            // a load of `lanes` (size mask `sm`), the value from the shifted word `v` and word `w`
+            macro_rules! load {
+                ($sm:expr, $lanes:expr, $v:ident, $w:ident => $ext:expr) => {{
+                    let addr = a.wrapping_add(imm);
+                    let off = addr.wrapping_sub(RAM_BASE);
+                    let sm: u32 = $sm;
+                    if addr & sm != 0 || off >= RAM_SIZE {
+                        break Burst::Slow;
+                    }
+                    let word = ram[(off >> 2) as usize & (RAM_WORDS - 1)];
+                    let $w = word;
+                    let $v = word >> ((addr & 3) * 8);
+                    x[rd] = $ext;
+                    if TRACE {
+                        let lanes: u8 = $lanes;
+                        mem.addr = addr & !3;
+                        mem.rmask = lanes << (addr & 3);
+                        mem.rdata = word;
+                    }
+                }};
+            }
+            // a store of `lanes` (size mask `sm`) with the bus data `data`
+            macro_rules! store {
+                ($sm:expr, $lanes:expr, $data:expr) => {{
+                    let addr = a.wrapping_add(imm);
+                    let off = addr.wrapping_sub(RAM_BASE);
+                    let sm: u32 = $sm;
+                    if addr & sm != 0 || off >= RAM_SIZE {
+                        break Burst::Slow;
+                    }
+                    let data: u32 = $data;
+                    let lanes: u8 = $lanes;
+                    let i = (off >> 2) as usize & (RAM_WORDS - 1);
+                    let old = ram[i];
+                    let m = (0..4).fold(0u32, |m, k| {
+                        if lanes & (1 << k) != 0 {
+                            m | 0xff << (8 * k)
+                        } else {
+                            m
+                        }
+                    }) << (8 * (addr & 3));
+                    ram[i] = (old & !m) | (data & m);
+                    if ops[i] != 0 || i == idx + 1 {
+                        ops[i] = 0;
+                        if i == idx + 1 {
+                            // the next instruction was fetched before this write
+                            *stale = Some(old);
+                            deadline = 0;
+                        }
+                    }
+                    if TRACE {
+                        mem.addr = addr & !3;
+                        mem.wmask = lanes << (addr & 3);
+                        mem.wdata = data;
+                    }
+                }};
+            }
             match op as u8 {
-                k::LI => self.x[rd] = imm,
-                k::ADDI => self.x[rd] = a.wrapping_add(imm),
-                k::SLTI => self.x[rd] = u32::from((a as i32) < (imm as i32)),
-                k::SLTIU => self.x[rd] = u32::from(a < imm),
-                k::XORI => self.x[rd] = a ^ imm,
-                k::ORI => self.x[rd] = a | imm,
-                k::ANDI => self.x[rd] = a & imm,
-                k::SLLI => self.x[rd] = a << (imm & 31),
-                k::SRLI => self.x[rd] = a >> (imm & 31),
-                k::SRAI => self.x[rd] = ((a as i32) >> (imm & 31)) as u32,
-                k::ADD => self.x[rd] = a.wrapping_add(b),
-                k::SUB => self.x[rd] = a.wrapping_sub(b),
-                k::SLL => self.x[rd] = a << (b & 31),
-                k::SLT => self.x[rd] = u32::from((a as i32) < (b as i32)),
-                k::SLTU => self.x[rd] = u32::from(a < b),
-                k::XOR => self.x[rd] = a ^ b,
-                k::SRL => self.x[rd] = a >> (b & 31),
-                k::SRA => self.x[rd] = ((a as i32) >> (b & 31)) as u32,
-                k::OR => self.x[rd] = a | b,
-                k::AND => self.x[rd] = a & b,
-                k::MUL => self.x[rd] = a.wrapping_mul(b),
+                k::LI => x[rd] = imm,
+                k::ADDI => x[rd] = a.wrapping_add(imm),
+                k::SLTI => x[rd] = u32::from((a as i32) < (imm as i32)),
+                k::SLTIU => x[rd] = u32::from(a < imm),
+                k::XORI => x[rd] = a ^ imm,
+                k::ORI => x[rd] = a | imm,
+                k::ANDI => x[rd] = a & imm,
+                k::SLLI => x[rd] = a << (imm & 31),
+                k::SRLI => x[rd] = a >> (imm & 31),
+                k::SRAI => x[rd] = ((a as i32) >> (imm & 31)) as u32,
+                k::ADD => x[rd] = a.wrapping_add(b),
+                k::SUB => x[rd] = a.wrapping_sub(b),
+                k::SLL => x[rd] = a << (b & 31),
+                k::SLT => x[rd] = u32::from((a as i32) < (b as i32)),
+                k::SLTU => x[rd] = u32::from(a < b),
+                k::XOR => x[rd] = a ^ b,
+                k::SRL => x[rd] = a >> (b & 31),
+                k::SRA => x[rd] = ((a as i32) >> (b & 31)) as u32,
+                k::OR => x[rd] = a | b,
+                k::AND => x[rd] = a & b,
+                k::MUL => x[rd] = a.wrapping_mul(b),
                 k::MULH => {
-                    self.x[rd] = ((i64::from(a as i32) * i64::from(b as i32)) >> 32) as u32;
+                    x[rd] = ((i64::from(a as i32) * i64::from(b as i32)) >> 32) as u32;
                 }
-                k::MULHSU => self.x[rd] = ((i64::from(a as i32) * i64::from(b)) >> 32) as u32,
-                k::MULHU => self.x[rd] = ((u64::from(a) * u64::from(b)) >> 32) as u32,
+                k::MULHSU => x[rd] = ((i64::from(a as i32) * i64::from(b)) >> 32) as u32,
+                k::MULHU => x[rd] = ((u64::from(a) * u64::from(b)) >> 32) as u32,
                 k::DIV | k::DIVU | k::REM | k::REMU => {
-                    self.x[rd] = divide(u32::from(op as u8 - k::DIV) + 4, a, b);
+                    x[rd] = divide(u32::from(op as u8 - k::DIV) + 4, a, b);
                     cycles = 34;
                 }
                 k::JAL => {
-                    self.x[rd] = next;
+                    x[rd] = next;
                     next = imm;
                 }
                 k::JALR => {
@@ -326,7 +401,7 @@ impl Soc {
                     if t & 2 != 0 {
                         break Burst::Slow;
                     }
-                    self.x[rd] = next;
+                    x[rd] = next;
                     next = t;
                 }
                 k::BEQ => {
@@ -359,72 +434,14 @@ impl Soc {
                         next = imm;
                     }
                 }
-                k::LB | k::LH | k::LW | k::LBU | k::LHU => {
-                    let addr = a.wrapping_add(imm);
-                    let kind = op as u8;
-                    let size_mask = match kind {
-                        k::LW => 3,
-                        k::LH | k::LHU => 1,
-                        _ => 0,
-                    };
-                    let off = addr.wrapping_sub(RAM_BASE);
-                    if addr & size_mask != 0 || off >= RAM_SIZE {
-                        break Burst::Slow;
-                    }
-                    let word = self.ram[(off >> 2) as usize];
-                    let v = word >> ((addr & 3) * 8);
-                    self.x[rd] = match kind {
-                        k::LB => v as u8 as i8 as i32 as u32,
-                        k::LH => v as u16 as i16 as i32 as u32,
-                        k::LBU => v & 0xff,
-                        k::LHU => v & 0xffff,
-                        _ => word,
-                    };
-                    if TRACE {
-                        let lanes: u8 = match kind {
-                            k::LW => 0xf,
-                            k::LH | k::LHU => 0x3,
-                            _ => 0x1,
-                        };
-                        mem.addr = addr & !3;
-                        mem.rmask = lanes << (addr & 3);
-                        mem.rdata = word;
-                    }
-                }
-                k::SB | k::SH | k::SW => {
-                    let addr = a.wrapping_add(imm);
-                    let kind = op as u8;
-                    let (size_mask, lanes, data) = match kind {
-                        k::SW => (3, 0xfu8, b),
-                        k::SH => (1, 0x3, (b & 0xffff) * 0x0001_0001),
-                        _ => (0, 0x1, (b & 0xff) * 0x0101_0101),
-                    };
-                    let off = addr.wrapping_sub(RAM_BASE);
-                    if addr & size_mask != 0 || off >= RAM_SIZE {
-                        break Burst::Slow;
-                    }
-                    let i = (off >> 2) as usize;
-                    let old = self.ram[i];
-                    let m = match kind {
-                        k::SW => u32::MAX,
-                        k::SH => 0xffff << ((addr & 2) * 8),
-                        _ => 0xff << ((addr & 3) * 8),
-                    };
-                    self.ram[i] = (old & !m) | (data & m);
-                    if self.ops[i] != 0 || i == idx + 1 {
-                        self.ops[i] = 0;
-                        if i == idx + 1 {
-                            // the next instruction was fetched before this write
-                            self.stale = Some(old);
-                            deadline = 0;
-                        }
-                    }
-                    if TRACE {
-                        mem.addr = addr & !3;
-                        mem.wmask = lanes << (addr & 3);
-                        mem.wdata = data;
-                    }
-                }
+                k::LB => load!(0, 0x1, v, _w => v as u8 as i8 as i32 as u32),
+                k::LH => load!(1, 0x3, v, _w => v as u16 as i16 as i32 as u32),
+                k::LW => load!(3, 0xf, _v, w => w),
+                k::LBU => load!(0, 0x1, v, _w => v & 0xff),
+                k::LHU => load!(1, 0x3, v, _w => v & 0xffff),
+                k::SB => store!(0, 0x1, (b & 0xff) * 0x0101_0101),
+                k::SH => store!(1, 0x3, (b & 0xffff) * 0x0001_0001),
+                k::SW => store!(3, 0xf, b),
                 k::NOP => {}
                 _ => break Burst::Slow,
             }
@@ -448,22 +465,22 @@ impl Soc {
                     0
                 };
                 let r = Retire {
-                    order: self.retired + (instret - start) + 1,
+                    order: *retired + (instret - start) + 1,
                     insn,
                     trap: false,
-                    intr: self.intr_flag,
+                    intr: *intr_flag,
                     pc_rdata: pc,
                     pc_wdata: next,
                     rd_addr,
-                    rd_wdata: if rd_addr != 0 { self.x[rd] } else { 0 },
+                    rd_wdata: if rd_addr != 0 { x[rd] } else { 0 },
                     mem_addr: mem.addr,
                     mem_rmask: mem.rmask,
                     mem_wmask: mem.wmask,
                     mem_rdata: mem.rdata,
                     mem_wdata: mem.wdata,
                 };
-                self.intr_flag = false;
-                if let Some(t) = self.trace.as_mut() {
+                *intr_flag = false;
+                if let Some(t) = trace.as_mut() {
                     t.push(Retired {
                         cycle: now + cycles,
                         retire: r,

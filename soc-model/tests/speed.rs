@@ -121,16 +121,20 @@ fn firmware_with_lbc_emu() {
     }
     let s = start.elapsed().as_secs_f64();
     let cpu = (cpu_ns() - cpu0) as f64 / 1e9;
-    // the model alone: the same input replayed into a fresh SoC
+    // the model alone: the same input replayed into a fresh SoC (best of 5)
+    let mut model = f64::MAX;
     let mut again = Soc::new();
-    again.load_elf(&elf).unwrap();
-    let cpu0 = cpu_ns();
-    for &(called, at, b) in &sends {
-        again.run_until(called, &mut out);
-        again.send_at(Port::Lbc, at, &[b]);
+    for _ in 0..5 {
+        again = Soc::new();
+        again.load_elf(&elf).unwrap();
+        let cpu0 = cpu_ns();
+        for &(called, at, b) in &sends {
+            again.run_until(called, &mut out);
+            again.send_at(Port::Lbc, at, &[b]);
+        }
+        again.run_until(cycles, &mut out);
+        model = model.min((cpu_ns() - cpu0) as f64 / 1e9);
     }
-    again.run_until(cycles, &mut out);
-    let model = (cpu_ns() - cpu0) as f64 / 1e9;
     assert_eq!(again.stats(), soc.stats(), "the replay is the same run");
     let st = soc.stats();
     assert!(lbc.streaming(), "the firmware brought the LBC up");
