@@ -26,13 +26,14 @@ pub use ground::PendingReply;
 pub use qemu_harness::{firmware_elf, softcore_elf};
 
 use crate::camera::{CarPose, SyntheticCamera};
-use crate::camera_feed::{FeedStats, WindowPublisher, RUN_DIR_PREFIX};
+use crate::camera_feed::{ram_file_name, FeedStats, WindowPublisher, RUN_DIR_PREFIX};
 use crate::engine::iss::IssEngine;
 use crate::engine::qemu::QemuEngine;
 use crate::engine::{CarEngine, CarIo, CoreLoad, Nanos};
 use crate::radio_medium::{MediumStats, NodeId, RadioMedium};
 use ground::Ground;
 use lbc_emu::{Lbc, LbcConfig, Pose};
+use qemu_harness::{SharedRam, SharedRamSpec};
 use radio_mac::CarId;
 use std::fmt;
 use std::io::{ErrorKind, Read, Write};
@@ -62,6 +63,9 @@ struct Camera {
     next: Nanos,
     cams: Vec<SyntheticCamera>,
     publishers: Vec<Option<WindowPublisher>>,
+    /// Real-time virtual-time worlds also publish each frame into a RAM-file window in the run
+    /// directory (`car<ID>-ram`, as a QEMU car's), so `almc camera snapshot` reads it.
+    mirrors: Vec<Option<(WindowPublisher, SharedRam)>>,
     frame: Vec<u8>,
     stats: FeedStats,
 }
@@ -247,12 +251,29 @@ impl World {
                             .and_then(|w| WindowPublisher::init(w, &g).ok())
                     })
                     .collect();
+                let mirror = |id: u8| -> Option<(WindowPublisher, SharedRam)> {
+                    let spec = SharedRamSpec::new(dir.0.join(ram_file_name(id)));
+                    let mut ram = SharedRam::create(&spec.path, spec.len()).ok()?;
+                    let p = WindowPublisher::init(&mut ram, &g).ok()?;
+                    Some((p, ram))
+                };
+                let mirrors = ids
+                    .iter()
+                    .map(|&id| {
+                        if paced && !engine.wall_clock() {
+                            mirror(id)
+                        } else {
+                            None
+                        }
+                    })
+                    .collect();
                 Some(Camera {
                     period: (1e9 / config.fps.clamp(0.1, 1000.0)).round() as Nanos,
                     next: 0,
                     frame: vec![0; g.frame_len()],
                     cams,
                     publishers,
+                    mirrors,
                     stats: FeedStats::default(),
                 })
             }
@@ -446,6 +467,9 @@ impl World {
                 && publisher
                     .publish(window, &cam.frame, capture / 1000)
                     .is_ok();
+            if let Some((p, ram)) = cam.mirrors[k].as_mut() {
+                let _ = p.publish(ram, &cam.frame, capture / 1000);
+            }
             if ok {
                 cam.stats.frames += 1;
             } else {
