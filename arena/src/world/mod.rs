@@ -115,6 +115,9 @@ impl fmt::Debug for World {
 
 static NEXT_WORLD: AtomicU64 = AtomicU64::new(0);
 
+/// The quantum of a world of QEMU cars when none other is asked for.
+const QEMU_QUANTUM: Duration = Duration::from_millis(1);
+
 /// Removes the run directories (sockets, RAM files) of worlds whose process is gone, as a
 /// killed run leaves them.
 fn remove_stale_run_dirs() {
@@ -218,7 +221,8 @@ impl World {
                 medium.add_node(metres(&c.start))
             })
             .collect();
-        let paced = cfg.realtime || engine.wall_clock();
+        let engine_is_wall_clock = engine.wall_clock();
+        let paced = cfg.realtime || engine_is_wall_clock;
         let user = if paced {
             let path = dir.0.join("ground.sock");
             let listener = UnixListener::bind(&path)?;
@@ -295,7 +299,13 @@ impl World {
             failed: vec![false; n],
             events: Vec::new(),
             now: 0,
-            quantum: nanos(cfg.quantum),
+            // QEMU cars run on their own; meeting them every millisecond (as a socket poll)
+            // is plenty and leaves the host's cores to the emulators.
+            quantum: if paced && engine_is_wall_clock && cfg.quantum == DEFAULT_QUANTUM {
+                nanos(QEMU_QUANTUM)
+            } else {
+                nanos(cfg.quantum)
+            },
             paced,
             wall_start: Instant::now(),
             stop_failed: cfg.stop_failed_cars,
