@@ -773,3 +773,20 @@ proptest! {
         prop_assert!(st.cycles >= 20_000 || exited);
     }
 }
+
+#[test]
+fn soc_is_send_clone_and_a_clone_runs_the_same() {
+    fn send_clone<T: Send + Clone + core::fmt::Debug>() {}
+    send_clone::<Soc>();
+    let p = random_program(7, 300);
+    let mut a = p.soc();
+    let mut out_a = Vec::new();
+    a.run_until(500, &mut out_a);
+    let mut b = a.clone();
+    let mut out_b = Vec::new();
+    a.run_until(200_000, &mut out_a);
+    b.run_until(200_000, &mut out_b);
+    assert_eq!(a.stats(), b.stats());
+    assert_eq!(a.halted(), b.halted());
+    assert!(format!("{a:?}").contains("Soc"));
+}

@@ -532,3 +532,119 @@ fn firmware_on_the_model_matches_the_rtl() {
         model_wall.as_secs_f64(),
     );
 }
+
+/// CPU time of this thread in nanoseconds (the machine is shared: wall time depends on the
+/// other load, CPU time much less).
+fn cpu_ns() -> u64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0)
+}
+
+/// The model alone (no RTL) as one car of the arena: the firmware with `lbc-emu` and a ground
+/// station, exchanged every half character time, through bring-up, a status request and a
+/// go-to group maneuver, for 60 M cycles (4.07 s of SoC time). Prints the model's speed: the
+/// whole co-simulation, and the model alone (the same input replayed into a fresh SoC, best
+/// of 3), in CPU time. `cargo test -p verilator-tb --release --test soc_model -- --ignored
+/// --nocapture model_speed` (needs `VTB_FIRMWARE`).
+#[test]
+#[ignore]
+fn model_speed_firmware_maneuver() {
+    use verilator_tb::cosim::{cycles_to_us, us_to_cycles, SerialPeer, SLICE_CYCLES};
+    let Some(path) = std::env::var_os("VTB_FIRMWARE") else {
+        eprintln!("VTB_FIRMWARE not set: skipping");
+        return;
+    };
+    let elf = std::fs::read(&path).expect("VTB_FIRMWARE is readable");
+    let cycles = 60_000_000;
+    let mut m = soc_model::Soc::new();
+    m.load_elf(&elf).expect("a softcore image");
+    let mut lbc = Lbc::with_memory_eeprom(LbcConfig::default(), CAR);
+    let ground = Rc::new(RefCell::new(Ground::new(CAR, false)));
+    let mut radio = GroundPeer(Rc::clone(&ground));
+    let mut sends = Vec::new();
+    let (mut out, mut scratch) = (Vec::new(), Vec::new());
+    let mut pending: Option<radio_mac::RequestHandle> = None;
+    let mut stage = 0;
+    let cpu0 = cpu_ns();
+    while m.cycle() < cycles {
+        let end = (m.cycle() + SLICE_CYCLES).min(cycles);
+        out.clear();
+        assert_eq!(m.run_until(end, &mut out), None);
+        for s in &out {
+            let t = cycles_to_us(s.cycle);
+            match s.output {
+                soc_model::Output::Tx {
+                    port: soc_model::Port::Lbc,
+                    byte,
+                } => lbc.receive(t, byte),
+                soc_model::Output::Tx { byte, .. } => radio.receive(t, byte),
+                soc_model::Output::Console(_) => {}
+            }
+        }
+        let now = cycles_to_us(m.cycle());
+        for (port, peer) in [
+            (soc_model::Port::Lbc, &mut lbc as &mut dyn SerialPeer),
+            (soc_model::Port::Radio, &mut radio),
+        ] {
+            scratch.clear();
+            peer.advance(now, &mut scratch);
+            for &(t, b) in &scratch {
+                m.send_at(port, us_to_cycles(t), &[b]);
+                sends.push((m.cycle(), port, us_to_cycles(t), b));
+            }
+        }
+        // the script: status once the LBC streams, then the maneuver
+        if let Some(h) = pending {
+            if let Some(reply) = ground.borrow_mut().answer(h) {
+                pending = None;
+                if stage == 2 {
+                    assert_eq!(reply, Reply::GroupStarted);
+                }
+            }
+        } else if stage == 0 && lbc.streaming() && lbc.drive_enabled() {
+            pending = Some(ground.borrow_mut().request(now, &Request::Status));
+            stage = 1;
+        } else if stage == 1 {
+            let go = Request::GroupStart(ManeuverParams::GoTo {
+                x: 300,
+                y: 600,
+                speed_mm_s: 200,
+            });
+            pending = Some(ground.borrow_mut().request(now, &go));
+            stage = 2;
+        }
+    }
+    let all = (cpu_ns() - cpu0) as f64 / 1e9;
+    assert_eq!(stage, 2, "the maneuver started");
+    let st = m.stats();
+    let mut alone = f64::MAX;
+    for _ in 0..3 {
+        let mut r = soc_model::Soc::new();
+        r.load_elf(&elf).unwrap();
+        let t0 = cpu_ns();
+        for &(called, port, at, b) in &sends {
+            r.run_until(called, &mut out);
+            r.send_at(port, at, &[b]);
+        }
+        r.run_until(cycles, &mut out);
+        alone = alone.min((cpu_ns() - t0) as f64 / 1e9);
+        assert_eq!(r.stats(), st, "the replay is the same run");
+    }
+    let awake = st.cycles - st.sleep_cycles;
+    println!(
+        "firmware maneuver on the model: {cycles} cycles, {} instructions, {awake} awake cycles; \
+         co-simulation {all:.3} s CPU ({:.0} M cycles/s, {:.0}x real time); the model alone \
+         {alone:.3} s ({:.0} M cycles/s, {:.1} M instructions/s)",
+        st.retired,
+        cycles as f64 / all / 1e6,
+        cycles as f64 / CLOCK_HZ as f64 / all,
+        cycles as f64 / alone / 1e6,
+        st.retired as f64 / alone / 1e6,
+    );
+    println!(
+        "figures: mode=model-maneuver cycles={cycles} instructions={} sleep_cycles={} cpu_s={all:.3} model_cpu_s={alone:.3}",
+        st.retired, st.sleep_cycles
+    );
+}
