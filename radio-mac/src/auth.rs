@@ -64,32 +64,59 @@ impl Key {
     }
 }
 
-/// Tag of an [`Frame::AuthCommand`] (its own `mac` field is ignored); `None` for other kinds.
-pub fn command_tag(key: &Key, frame: &Frame) -> Result<Option<[u8; AUTH_TAG_LEN]>, EncodeError> {
-    if !matches!(frame, Frame::AuthCommand { .. }) {
-        return Ok(None);
-    }
-    let mut raw = [0u8; MAX_RAW];
+/// Tag of an authenticated frame (its own `mac` field is ignored): SipHash-2-4 over the raw
+/// frame from the header to the field before the tag; for an [`Frame::AuthCommand`] the
+/// ground station's session `epoch` (u32, little-endian) follows, so that a command is bound
+/// to one session without carrying the epoch on air. `None` for kinds without a tag.
+pub fn frame_tag(
+    key: &Key,
+    epoch: u32,
+    frame: &Frame,
+) -> Result<Option<[u8; AUTH_TAG_LEN]>, EncodeError> {
+    let bound = match frame {
+        Frame::AuthCommand { .. } => true,
+        Frame::GroundBeat { .. } | Frame::Hello { .. } | Frame::SessionOpen { .. } => false,
+        _ => return Ok(None),
+    };
+    let mut raw = [0u8; MAX_RAW + 4];
     let n = frame.emit_raw(&mut raw)?;
-    let covered = raw
-        .get(..n.saturating_sub(AUTH_TAG_LEN + CRC_LEN))
-        .ok_or(EncodeError::BufferTooSmall)?;
+    let mut end = n.saturating_sub(AUTH_TAG_LEN + CRC_LEN);
+    if bound {
+        raw.get_mut(end..end + 4)
+            .ok_or(EncodeError::BufferTooSmall)?
+            .copy_from_slice(&epoch.to_le_bytes());
+        end += 4;
+    }
+    let covered = raw.get(..end).ok_or(EncodeError::BufferTooSmall)?;
     Ok(Some(key.tag(covered)))
 }
 
-/// Set the `mac` field of an authenticated command.
-pub fn sign(key: &Key, frame: &mut Frame) -> Result<(), EncodeError> {
-    let tag = command_tag(key, frame)?;
-    if let (Some(t), Frame::AuthCommand { mac, .. }) = (tag, frame) {
-        *mac = t;
+/// Set the `mac` field of an authenticated frame (`epoch`: see [`frame_tag`]).
+pub fn sign(key: &Key, epoch: u32, frame: &mut Frame) -> Result<(), EncodeError> {
+    if let Some(t) = frame_tag(key, epoch, frame)? {
+        if let Frame::AuthCommand { mac, .. }
+        | Frame::GroundBeat { mac, .. }
+        | Frame::Hello { mac, .. }
+        | Frame::SessionOpen { mac, .. } = frame
+        {
+            *mac = t;
+        }
     }
     Ok(())
 }
 
-/// Check the `mac` field of an authenticated command in constant time.
-pub fn verify(key: &Key, frame: &Frame) -> bool {
-    match (command_tag(key, frame), frame) {
-        (Ok(Some(t)), Frame::AuthCommand { mac, .. }) => {
+/// Check the `mac` field of an authenticated frame in constant time (`epoch`: see
+/// [`frame_tag`]).
+pub fn verify(key: &Key, epoch: u32, frame: &Frame) -> bool {
+    let mac = match frame {
+        Frame::AuthCommand { mac, .. }
+        | Frame::GroundBeat { mac, .. }
+        | Frame::Hello { mac, .. }
+        | Frame::SessionOpen { mac, .. } => mac,
+        _ => return false,
+    };
+    match frame_tag(key, epoch, frame) {
+        Ok(Some(t)) => {
             t.iter()
                 .zip(mac.iter())
                 .fold(0u8, |acc, (a, b)| acc | (a ^ b))
@@ -149,6 +176,37 @@ impl ReplayGuard {
     pub fn accept(&mut self, counter: u32) {
         self.last = Some(counter);
     }
+
+    /// A guard that accepts counters from `min` on (everything below is a replay).
+    pub const fn from_min(min: u32) -> Self {
+        match min.checked_sub(1) {
+            Some(last) => Self::restore(last),
+            None => Self::new(),
+        }
+    }
+
+    /// The stricter of two guards (the higher last counter).
+    pub fn max(self, other: Self) -> Self {
+        if other.last > self.last {
+            other
+        } else {
+            self
+        }
+    }
+}
+
+/// A car's session with its ground station: the station's epoch and the counters accepted in
+/// it. A car has none after a restart until the ground station answers its
+/// [`Frame::Hello`], so nothing recorded before the restart is accepted after it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Session {
+    /// The ground station's epoch (part of every command's MAC, sent in its heartbeats).
+    pub epoch: u32,
+    /// Command counters.
+    pub commands: ReplayGuard,
+    /// Heartbeat counters.
+    pub beats: ReplayGuard,
 }
 
 #[cfg(test)]
@@ -203,19 +261,20 @@ mod tests {
     fn sign_verify_and_tamper() {
         let key = Key::new([7; 16]);
         let mut f = cmd(10);
-        sign(&key, &mut f).unwrap();
-        assert!(verify(&key, &f));
-        assert!(!verify(&Key::new([8; 16]), &f));
+        sign(&key, 3, &mut f).unwrap();
+        assert!(verify(&key, 3, &f));
+        assert!(!verify(&key, 4, &f), "bound to the session epoch");
+        assert!(!verify(&Key::new([8; 16]), 3, &f));
         if let Frame::AuthCommand {
             counter, payload, ..
         } = &mut f
         {
             *counter = 11;
-            assert!(!verify(&key, &cmd(11)));
+            assert!(!verify(&key, 3, &cmd(11)));
             *counter = 10;
             payload[0] = 8;
         }
-        assert!(!verify(&key, &f));
+        assert!(!verify(&key, 3, &f));
     }
 
     #[test]

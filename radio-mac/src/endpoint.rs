@@ -7,7 +7,7 @@
 //! dropped frame or byte increments one counter in [`Stats`].
 
 use crate::addr::{Address, CarId};
-use crate::auth::{self, Freshness, Key, ReplayGuard};
+use crate::auth::{self, Freshness, Key, ReplayGuard, Session};
 use crate::deframer::Deframer;
 use crate::neighbours::{CachedReply, NeighbourTable, SeqCheck, SeqWindow};
 use crate::schedule::Schedule;
@@ -38,6 +38,15 @@ pub const HEARTBEAT_US: u32 = 1_000_000;
 pub const STALE_AFTER_US: u32 = 1_000_000;
 /// Silence after which a peer's duplicate window is forgotten (longer than a full retry run).
 pub const DEDUP_RESET_US: u64 = 5_000_000;
+/// A car without a session sends a Hello this often.
+pub const HELLO_RETRY_US: u64 = 1_000_000;
+/// Shortest gap between two Hellos of a car (a command or heartbeat it cannot verify asks for
+/// one at once; the ground station's retransmissions come at least 40 ms apart).
+pub const HELLO_GAP_US: u64 = 20_000;
+/// Shortest gap between two session openings the ground station sends one car.
+pub const SESSION_OPEN_GAP_US: u64 = 20_000;
+/// Largest random delay of a car's first Hello.
+pub const HELLO_FIRST_JITTER_US: u64 = 50_000;
 
 /// Retransmission parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -244,8 +253,20 @@ pub struct Stats {
     pub failures: u32,
     /// Authenticated commands received without a configured key.
     pub auth_no_key: u32,
-    /// Authenticated commands with a wrong MAC (forged or altered).
+    /// Authenticated frames that did not verify: forged or altered, another key, or signed
+    /// for another session; also commands received without a session once two Hellos went
+    /// unanswered (a ground station with another key never answers them). On the ground
+    /// station: Hellos that did not verify.
     pub auth_bad_mac: u32,
+    /// Authenticated commands and heartbeats received while the car had no session with the
+    /// ground station's epoch (it sends a Hello).
+    pub auth_no_session: u32,
+    /// Hellos sent (car).
+    pub hellos_sent: u32,
+    /// Sessions opened: accepted by a car, sent by the ground station.
+    pub sessions_opened: u32,
+    /// Session openings a car refused (not for its last Hello, or a bad MAC).
+    pub sessions_refused: u32,
     /// Authenticated commands with an old counter (replayed).
     pub auth_replay: u32,
     /// Retransmissions of the last accepted command.
@@ -268,6 +289,8 @@ struct Pending {
     dst: Address,
     seq: u16,
     auth: bool,
+    /// Counter of an authenticated command.
+    counter: u32,
     frame: Encoded,
     attempts: u8,
     due: u64,
@@ -294,7 +317,23 @@ pub struct Endpoint<const N: usize> {
     next_handle: u32,
     rng: u32,
     key: Option<Key>,
+    /// Car: the floor restored from storage, applied to every session.
     guard: ReplayGuard,
+    /// Car: the session with the ground station.
+    session: Option<Session>,
+    /// Car: nonce of the next Hello; of the last one sent, while unanswered.
+    next_nonce: u64,
+    hello_nonce: Option<u64>,
+    hello_at: Option<u64>,
+    /// Car: Hellos sent since the last session opened.
+    hellos_unanswered: u8,
+    /// Car: when the next periodic Hello is due (the first one after a random delay of up
+    /// to [`HELLO_FIRST_JITTER_US`], so that cars started together do not collide).
+    hello_due: Option<u64>,
+    /// Ground station: session epoch, next command and heartbeat counters.
+    pub(crate) epoch: u32,
+    pub(crate) next_command: u32,
+    next_beat: u32,
     auth_pending: Option<u32>,
     auth_reply: Option<CachedReply>,
     pub(crate) schedule: Option<Schedule>,
@@ -340,6 +379,15 @@ impl<const N: usize> Endpoint<N> {
             rng,
             key,
             guard,
+            session: None,
+            next_nonce: 0,
+            hello_nonce: None,
+            hello_at: None,
+            hellos_unanswered: 0,
+            hello_due: None,
+            epoch: 0,
+            next_command: 0,
+            next_beat: 1,
             auth_pending: None,
             auth_reply: None,
             schedule,
@@ -384,9 +432,40 @@ impl<const N: usize> Endpoint<N> {
         self.stale_after_us
     }
 
-    /// Highest accepted command counter (persist it to keep replay protection across restarts).
+    /// Command counters accepted in the current session (none without a session).
     pub fn replay_guard(&self) -> ReplayGuard {
-        self.guard
+        self.session.map_or(ReplayGuard::new(), |s| s.commands)
+    }
+
+    /// The car's session with the ground station, once one is open.
+    pub fn session(&self) -> Option<Session> {
+        self.session
+    }
+
+    /// Car: Hello nonces start at `boot << 32` (a counter persisted across restarts).
+    pub(crate) fn set_boot(&mut self, boot: u32) {
+        self.next_nonce = u64::from(boot) << 32;
+    }
+
+    /// Ground station: its session epoch and first command counter.
+    pub(crate) fn set_ground_session(&mut self, epoch: u32, first_counter: u32) {
+        self.epoch = epoch;
+        self.next_command = first_counter;
+    }
+
+    /// An authenticated command is still being sent.
+    pub(crate) fn auth_outstanding(&self) -> bool {
+        self.pending.iter().any(|p| p.auth)
+    }
+
+    /// Ground station: the next session, when a counter is used up.
+    pub(crate) fn next_epoch(&mut self) {
+        self.epoch = self.epoch.wrapping_add(1);
+        self.next_beat = 1;
+        self.next_command = 1;
+        // A heartbeat at once tells the cars of the new epoch (they ask to join it).
+        self.next_heartbeat = None;
+        self.heartbeat_aligned = false;
     }
 
     /// Next event for the application.
@@ -504,6 +583,7 @@ impl<const N: usize> Endpoint<N> {
             dst,
             seq,
             auth: false,
+            counter: 0,
             frame: enc,
             attempts: 1,
             due,
@@ -555,6 +635,7 @@ impl<const N: usize> Endpoint<N> {
             dst,
             seq: 0,
             auth: false,
+            counter: 0,
             frame: enc,
             attempts: 1,
             due,
@@ -588,12 +669,13 @@ impl<const N: usize> Endpoint<N> {
             payload,
             mac: [0; crate::wire::AUTH_TAG_LEN],
         };
-        auth::sign(&key, &mut frame).map_err(SendError::Encode)?;
+        auth::sign(&key, self.epoch, &mut frame).map_err(SendError::Encode)?;
         let enc = self.queue_frame(&frame)?;
         if dst == Address::Broadcast {
             let h = self.push_repeat(now, dst, enc)?;
             if let Some(p) = self.pending.last_mut() {
                 p.auth = true;
+                p.counter = counter;
             }
             return Ok(h);
         }
@@ -604,6 +686,7 @@ impl<const N: usize> Endpoint<N> {
             dst,
             seq: counter as u16,
             auth: true,
+            counter,
             frame: enc,
             attempts: 1,
             due,
@@ -817,7 +900,10 @@ impl<const N: usize> Endpoint<N> {
                     }
                 }
             }
-            frame @ Frame::AuthCommand { .. } => self.handle_auth(frame),
+            frame @ Frame::AuthCommand { .. } => self.handle_auth(now, frame),
+            frame @ Frame::GroundBeat { .. } => self.handle_beat(now, frame),
+            frame @ Frame::Hello { .. } => self.handle_hello(now, frame),
+            frame @ Frame::SessionOpen { .. } => self.handle_open(frame),
         }
     }
 
@@ -866,7 +952,7 @@ impl<const N: usize> Endpoint<N> {
         }
     }
 
-    fn handle_auth(&mut self, frame: Frame) {
+    fn handle_auth(&mut self, now: u64, frame: Frame) {
         let Frame::AuthCommand {
             dst,
             counter,
@@ -884,12 +970,21 @@ impl<const N: usize> Endpoint<N> {
             self.stats.auth_no_key += 1;
             return;
         };
-        if !auth::verify(key, &frame) {
+        // Without a session the epoch of the MAC is unknown: nothing can be verified.
+        let Some(mut session) = self.session else {
+            if self.hellos_unanswered >= 2 {
+                self.stats.auth_bad_mac += 1;
+            }
+            self.stats.auth_no_session += 1;
+            self.hello(now, HELLO_GAP_US);
+            return;
+        };
+        if !auth::verify(key, session.epoch, &frame) {
             self.stats.auth_bad_mac += 1;
             return;
         }
         let broadcast = dst == Address::Broadcast;
-        match self.guard.check(counter) {
+        match session.commands.check(counter) {
             Freshness::Fresh => {
                 let ev = Event::Request(Incoming {
                     id: IncomingId {
@@ -902,7 +997,10 @@ impl<const N: usize> Endpoint<N> {
                     payload: payload.clone(),
                 });
                 if self.emit(ev) {
-                    self.guard.accept(counter);
+                    session.commands.accept(counter);
+                    // The last counter of an epoch ends the session; the ground station
+                    // continues in its next epoch, which the car joins with a Hello.
+                    self.session = (counter != u32::MAX).then_some(session);
                     self.auth_reply = None;
                     self.auth_pending = if broadcast { None } else { Some(counter) };
                 }
@@ -918,6 +1016,150 @@ impl<const N: usize> Endpoint<N> {
             }
             Freshness::Replay => self.stats.auth_replay += 1,
         }
+    }
+
+    /// A ground-station heartbeat: it counts (as [`Event::Heartbeat`] from the ground station)
+    /// only when it verifies and is fresh in the car's session.
+    fn handle_beat(&mut self, now: u64, frame: Frame) {
+        let Frame::GroundBeat { epoch, beat, .. } = frame else {
+            return;
+        };
+        let Some(key) = self.key.as_ref() else {
+            self.stats.auth_no_key += 1;
+            return;
+        };
+        if !matches!(self.own, Address::Car(_)) {
+            return;
+        }
+        if !auth::verify(key, 0, &frame) {
+            self.stats.auth_bad_mac += 1;
+            return;
+        }
+        let Some(mut session) = self.session.filter(|s| s.epoch == epoch) else {
+            // Our ground station in another session (it restarted, or we did).
+            self.stats.auth_no_session += 1;
+            self.hello(now, HELLO_GAP_US);
+            return;
+        };
+        if session.beats.check(beat) != Freshness::Fresh {
+            self.stats.auth_replay += 1;
+            return;
+        }
+        session.beats.accept(beat);
+        self.session = (beat != u32::MAX).then_some(session);
+        self.emit(Event::Heartbeat {
+            from: Address::Ground,
+            beat: Heartbeat::default(),
+        });
+    }
+
+    /// Car: asks the ground station for a session, at most once per `gap`.
+    fn hello(&mut self, now: u64, gap: u64) {
+        let (Some(key), Address::Car(src)) = (self.key.as_ref(), self.own) else {
+            return;
+        };
+        if self.hello_at.is_some_and(|t| now.saturating_sub(t) < gap) {
+            return;
+        }
+        let nonce = self.next_nonce;
+        let mut frame = Frame::Hello {
+            src,
+            nonce,
+            mac: [0; crate::wire::AUTH_TAG_LEN],
+        };
+        if auth::sign(key, 0, &mut frame).is_ok() && self.queue_frame(&frame).is_ok() {
+            self.next_nonce = nonce.wrapping_add(1);
+            self.hello_nonce = Some(nonce);
+            self.hello_at = Some(now);
+            self.hellos_unanswered = self.hellos_unanswered.saturating_add(1);
+            self.stats.hellos_sent += 1;
+        }
+    }
+
+    /// Ground station: answers a car's Hello with a session in its epoch. Command counters
+    /// from the oldest one still being sent are accepted, heartbeats from the next one.
+    fn handle_hello(&mut self, now: u64, frame: Frame) {
+        let (Frame::Hello { src, nonce, .. }, Some(key)) = (&frame, self.key.as_ref()) else {
+            return;
+        };
+        if self.own != Address::Ground {
+            return;
+        }
+        if !auth::verify(key, 0, &frame) {
+            self.stats.auth_bad_mac += 1;
+            return;
+        }
+        let Some(n) = self.neighbours.get_mut(Address::Car(*src)) else {
+            return;
+        };
+        if n.session_sent
+            .is_some_and(|t| now.saturating_sub(t) < SESSION_OPEN_GAP_US)
+        {
+            return;
+        }
+        n.session_sent = Some(now);
+        let command_min = self
+            .pending
+            .iter()
+            .filter(|p| p.auth)
+            .map(|p| p.counter)
+            .min()
+            .unwrap_or(self.next_command);
+        let mut open = Frame::SessionOpen {
+            dst: *src,
+            nonce: *nonce,
+            epoch: self.epoch,
+            command_min,
+            beat_min: self.next_beat,
+            mac: [0; crate::wire::AUTH_TAG_LEN],
+        };
+        if auth::sign(key, 0, &mut open).is_ok() && self.queue_frame(&open).is_ok() {
+            self.stats.sessions_opened += 1;
+        }
+    }
+
+    /// Car: joins the session of a SessionOpen answering its last Hello.
+    fn handle_open(&mut self, frame: Frame) {
+        let Frame::SessionOpen {
+            dst,
+            nonce,
+            epoch,
+            command_min,
+            beat_min,
+            ..
+        } = frame
+        else {
+            return;
+        };
+        if self.own != Address::Car(dst) {
+            self.stats.not_for_us += 1;
+            return;
+        }
+        let verified = self
+            .key
+            .as_ref()
+            .is_some_and(|k| auth::verify(k, 0, &frame));
+        if !verified || self.hello_nonce != Some(nonce) {
+            self.stats.sessions_refused += 1;
+            return;
+        }
+        self.hello_nonce = None;
+        self.hellos_unanswered = 0;
+        let mut session = Session {
+            epoch,
+            commands: ReplayGuard::from_min(command_min).max(self.guard),
+            beats: ReplayGuard::from_min(beat_min),
+        };
+        if let Some(old) = self.session.filter(|s| s.epoch == epoch) {
+            // The same session again (a repeated Hello): never lower its floors.
+            session.commands = session.commands.max(old.commands);
+            session.beats = session.beats.max(old.beats);
+        } else {
+            self.auth_reply = None;
+            self.auth_pending = None;
+        }
+        self.session = Some(session);
+        self.stats.sessions_opened += 1;
     }
 
     /// Advance timers to `now`: retransmissions, state broadcast, heartbeat, staleness.
@@ -970,6 +1212,13 @@ impl<const N: usize> Endpoint<N> {
         }
         self.poll_state(now);
         self.poll_heartbeat(now);
+        if self.session.is_none() && self.key.is_some() && matches!(self.own, Address::Car(_)) {
+            let first = now + u64::from(self.random()) % HELLO_FIRST_JITTER_US;
+            if now >= *self.hello_due.get_or_insert(first) {
+                self.hello_due = Some(now + HELLO_RETRY_US);
+                self.hello(now, HELLO_GAP_US);
+            }
+        }
     }
 
     fn poll_state(&mut self, now: u64) {
@@ -1041,18 +1290,40 @@ impl<const N: usize> Endpoint<N> {
         }
         self.heartbeat_aligned = false;
         self.next_heartbeat = Some(now + self.heartbeat_us);
-        let uptime = now.saturating_sub(self.started.unwrap_or(now)) / 1_000_000;
-        let beat = Heartbeat {
-            mode: self.mode,
-            neighbours: self.neighbours.fresh_count(now, self.stale_after_us) as u8,
-            uptime_s: uptime as u16,
-        };
-        let frame = Frame::Heartbeat {
-            src: self.own,
-            beat,
+        let frame = if self.own == Address::Ground {
+            // The ground station's heartbeat is authenticated and counted; the counter's
+            // last value starts the next epoch.
+            let Some(key) = self.key.clone() else {
+                return;
+            };
+            let mut f = Frame::GroundBeat {
+                epoch: self.epoch,
+                beat: self.next_beat,
+                mac: [0; crate::wire::AUTH_TAG_LEN],
+            };
+            if auth::sign(&key, 0, &mut f).is_err() {
+                return;
+            }
+            f
+        } else {
+            let uptime = now.saturating_sub(self.started.unwrap_or(now)) / 1_000_000;
+            Frame::Heartbeat {
+                src: self.own,
+                beat: Heartbeat {
+                    mode: self.mode,
+                    neighbours: self.neighbours.fresh_count(now, self.stale_after_us) as u8,
+                    uptime_s: uptime as u16,
+                },
+            }
         };
         if self.queue_frame(&frame).is_ok() {
             self.stats.heartbeats_sent += 1;
+            if self.own == Address::Ground {
+                match self.next_beat.checked_add(1) {
+                    Some(b) => self.next_beat = b,
+                    None => self.next_epoch(),
+                }
+            }
         }
     }
 
@@ -1066,6 +1337,9 @@ impl<const N: usize> Endpoint<N> {
             if let Some(s) = self.schedule.as_mut() {
                 t = t.min(s.next_due(now));
             }
+        }
+        if self.session.is_none() && self.key.is_some() && matches!(self.own, Address::Car(_)) {
+            t = t.min(self.hello_due.unwrap_or(now));
         }
         t
     }

@@ -27,7 +27,7 @@ pub mod wire;
 mod tests;
 
 pub use addr::{Address, CarId};
-pub use auth::{Key, ReplayGuard};
+pub use auth::{Key, ReplayGuard, Session};
 pub use deframer::Deframer;
 pub use endpoint::{
     Endpoint, Event, Incoming, IncomingId, ReplyError, RequestHandle, RetryConfig, SendError, Stats,
@@ -52,8 +52,14 @@ pub struct CarConfig {
     pub id: CarId,
     /// Testbed key for ground-station commands; without it every command is rejected.
     pub key: Option<Key>,
-    /// Replay state restored from persistent storage.
+    /// A floor under every session's command counters, restored from persistent storage if
+    /// the application keeps one (sessions alone already reject anything recorded before a
+    /// restart).
     pub replay: ReplayGuard,
+    /// A counter that grows at every start of the car and is persisted (the firmware keeps it
+    /// in an EEPROM register). Hello nonces are `boot << 32 | n`, so no nonce, and no session
+    /// opening recorded on air, is ever valid again after a restart.
+    pub boot: u32,
     /// When the state is broadcast.
     pub timing: StateTiming,
     /// Heartbeat period (heartbeats are skipped while the state is being broadcast).
@@ -73,6 +79,7 @@ impl CarConfig {
             id,
             key: None,
             replay: ReplayGuard::new(),
+            boot: 0,
             timing: StateTiming::slotted(id),
             heartbeat_us: HEARTBEAT_US,
             stale_after_us: STALE_AFTER_US,
@@ -93,19 +100,18 @@ impl CarMac {
     /// A car endpoint.
     pub fn new(config: CarConfig) -> Self {
         let schedule = Schedule::new(config.id, config.timing);
-        Self {
-            id: config.id,
-            ep: Endpoint::new(
-                Address::Car(config.id),
-                config.retry,
-                config.stale_after_us,
-                config.heartbeat_us,
-                config.seed,
-                config.key,
-                config.replay,
-                Some(schedule),
-            ),
-        }
+        let mut ep = Endpoint::new(
+            Address::Car(config.id),
+            config.retry,
+            config.stale_after_us,
+            config.heartbeat_us,
+            config.seed,
+            config.key,
+            config.replay,
+            Some(schedule),
+        );
+        ep.set_boot(config.boot);
+        Self { id: config.id, ep }
     }
 
     /// The car's ID.
@@ -208,9 +214,14 @@ impl CarMac {
         self.ep.stale_after_us()
     }
 
-    /// Replay state to persist.
+    /// Command counters accepted in the current session.
     pub fn replay_guard(&self) -> ReplayGuard {
         self.ep.replay_guard()
+    }
+
+    /// The session with the ground station, once one is open.
+    pub fn session(&self) -> Option<Session> {
+        self.ep.session()
     }
 
     /// The underlying engine.
@@ -225,9 +236,14 @@ impl CarMac {
 pub struct GroundConfig {
     /// Testbed key.
     pub key: Key,
-    /// Counter of the first command; must exceed every counter used before with this key
-    /// (persist [`GroundStation::next_counter`], or derive it from wall-clock seconds).
+    /// Counter of the first command. Within one epoch counters only grow; across runs the
+    /// epoch separates them (persisting [`GroundStation::next_counter`] as well keeps them
+    /// growing across runs too).
     pub first_counter: u32,
+    /// Session epoch: part of every command's MAC and sent in every heartbeat. Use a value
+    /// never used before with this key (e.g. random, per run); [`GroundConfig::new`] takes
+    /// `first_counter`. When a counter reaches `u32::MAX` the station moves to the next epoch.
+    pub epoch: u32,
     /// Heartbeat period.
     pub heartbeat_us: u32,
     /// A car silent this long is stale.
@@ -247,6 +263,7 @@ impl GroundConfig {
         Self {
             key,
             first_counter,
+            epoch: first_counter,
             heartbeat_us: HEARTBEAT_US,
             stale_after_us: STALE_AFTER_US,
             retry: RetryConfig::default(),
@@ -260,30 +277,41 @@ impl GroundConfig {
 #[derive(Debug)]
 pub struct GroundStation {
     ep: Endpoint<GROUND_CARS>,
-    counter: u32,
+    exhausted: bool,
 }
 
 impl GroundStation {
     /// A ground-station endpoint.
     pub fn new(config: GroundConfig) -> Self {
+        let mut ep = Endpoint::new(
+            Address::Ground,
+            config.retry,
+            config.stale_after_us,
+            config.heartbeat_us,
+            config.seed,
+            Some(config.key),
+            ReplayGuard::new(),
+            Some(Schedule::listener(config.state_latency_us)),
+        );
+        ep.set_ground_session(config.epoch, config.first_counter);
         Self {
-            ep: Endpoint::new(
-                Address::Ground,
-                config.retry,
-                config.stale_after_us,
-                config.heartbeat_us,
-                config.seed,
-                Some(config.key),
-                ReplayGuard::new(),
-                Some(Schedule::listener(config.state_latency_us)),
-            ),
-            counter: config.first_counter,
+            ep,
+            exhausted: false,
         }
     }
 
-    /// Counter the next command will use (persist it).
+    /// Counter the next command will use (1 in the next epoch once `u32::MAX` was used).
     pub fn next_counter(&self) -> u32 {
-        self.counter
+        if self.exhausted {
+            1
+        } else {
+            self.ep.next_command
+        }
+    }
+
+    /// The current session epoch.
+    pub fn epoch(&self) -> u32 {
+        self.ep.epoch
     }
 
     /// Send an authenticated command to one car (acknowledged by its [`Event::Reply`]) or to
@@ -296,8 +324,22 @@ impl GroundStation {
         tag: u8,
         payload: &[u8],
     ) -> Result<RequestHandle, SendError> {
-        let h = self.ep.command(now, dst, self.counter, tag, payload)?;
-        self.counter = self.counter.wrapping_add(1);
+        if self.exhausted {
+            // The last counter of the epoch went out: this command starts the next epoch
+            // (cars join it with a Hello) instead of using a counter every car would take for
+            // a replay. Only once nothing of the old epoch is outstanding.
+            if self.ep.auth_outstanding() {
+                return Err(SendError::Busy);
+            }
+            self.ep.next_epoch();
+            self.exhausted = false;
+        }
+        let counter = self.ep.next_command;
+        let h = self.ep.command(now, dst, counter, tag, payload)?;
+        match counter.checked_add(1) {
+            Some(c) => self.ep.next_command = c,
+            None => self.exhausted = true,
+        }
         Ok(h)
     }
 

@@ -106,6 +106,8 @@ pub struct Neighbour {
     pub(crate) pending: Option<u16>,
     pub(crate) reply: Option<CachedReply>,
     pub(crate) last_gseq: Option<u8>,
+    /// Ground station: when it last sent this car a session opening.
+    pub(crate) session_sent: Option<u64>,
 }
 
 impl Neighbour {
@@ -118,6 +120,7 @@ impl Neighbour {
             states_heard: 0,
             states_missed: 0,
             last_state_seq: None,
+            session_sent: None,
             window: None,
             pending: None,
             reply: None,

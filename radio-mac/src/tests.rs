@@ -80,9 +80,9 @@ fn arb_frame() -> impl Strategy<Value = Frame> {
             seq,
             state
         }),
-        (arb_unicast(), arb_mode(), any::<u8>(), any::<u16>()).prop_map(
+        (arb_car(), arb_mode(), any::<u8>(), any::<u16>()).prop_map(
             |(src, mode, neighbours, uptime_s)| Frame::Heartbeat {
-                src,
+                src: Address::Car(src),
                 beat: Heartbeat {
                     mode,
                     neighbours,
@@ -142,6 +142,28 @@ fn arb_frame() -> impl Strategy<Value = Frame> {
                 tag,
                 payload,
                 mac
+            }),
+        (any::<u32>(), any::<u32>(), any::<[u8; AUTH_TAG_LEN]>())
+            .prop_map(|(epoch, beat, mac)| Frame::GroundBeat { epoch, beat, mac }),
+        (arb_car(), any::<u64>(), any::<[u8; AUTH_TAG_LEN]>())
+            .prop_map(|(src, nonce, mac)| Frame::Hello { src, nonce, mac }),
+        (
+            arb_car(),
+            any::<u64>(),
+            any::<u32>(),
+            any::<u32>(),
+            any::<u32>(),
+            any::<[u8; AUTH_TAG_LEN]>()
+        )
+            .prop_map(|(dst, nonce, epoch, command_min, beat_min, mac)| {
+                Frame::SessionOpen {
+                    dst,
+                    nonce,
+                    epoch,
+                    command_min,
+                    beat_min,
+                    mac,
+                }
             }),
     ]
 }
@@ -363,10 +385,27 @@ fn keyed_car(id: u8) -> CarMac {
     CarMac::new(c)
 }
 
+/// The car's Hello to the ground station and its answer: the car joins the session.
+fn join(g: &mut GroundStation, c: &mut CarMac, now: u64) {
+    // The first Hello goes out within 50 ms of the car's start.
+    c.poll(now);
+    c.poll(now + endpoint::HELLO_FIRST_JITTER_US);
+    g.push_rx(now, &drain(c));
+    let _ = ground_events(g);
+    c.push_rx(now, &drain_ground(g));
+    assert_eq!(
+        c.session().map(|s| s.epoch),
+        Some(g.epoch()),
+        "{:?}",
+        c.stats()
+    );
+}
+
 #[test]
 fn authenticated_command_round_trip_and_attacks() {
     let mut g = GroundStation::new(GroundConfig::new(Key::new(KEY), 100));
     let mut c = keyed_car(5);
+    join(&mut g, &mut c, 0);
     let h = g.command(0, Address::Car(car(5)), 3, b"go").unwrap();
     let captured = drain_ground(&mut g);
     c.push_rx(10, &captured);
@@ -417,13 +456,13 @@ fn authenticated_command_round_trip_and_attacks() {
         payload: Payload::from_slice(b"go").unwrap(),
         mac: [0; AUTH_TAG_LEN],
     };
-    auth::sign(&Key::new(KEY), &mut frame).unwrap();
+    auth::sign(&Key::new(KEY), g.epoch(), &mut frame).unwrap();
     if let Frame::AuthCommand { payload, .. } = &mut frame {
         payload[0] = b'n';
     }
     c.push_rx(80, &encode_frame(&frame).unwrap());
     // Forged with another key.
-    auth::sign(&Key::new([1; 16]), &mut frame).unwrap();
+    auth::sign(&Key::new([1; 16]), g.epoch(), &mut frame).unwrap();
     c.push_rx(90, &encode_frame(&frame).unwrap());
     assert!(events(&mut c).is_empty());
     assert_eq!(c.stats().auth_bad_mac, 2);
@@ -439,6 +478,9 @@ fn authenticated_command_round_trip_and_attacks() {
 fn broadcast_command_executes_once_per_car() {
     let mut g = GroundStation::new(GroundConfig::new(Key::new(KEY), 7));
     let mut cars: std::vec::Vec<CarMac> = (1..=3).map(keyed_car).collect();
+    for c in &mut cars {
+        join(&mut g, c, 0);
+    }
     let h = g.command(0, Address::Broadcast, 1, &[42]).unwrap();
     let mut executed = [0; 3];
     let mut done = false;
@@ -552,7 +594,7 @@ fn state_broadcast_heartbeat_and_neighbours() {
 #[test]
 fn version_mismatch_counted() {
     let mut a = CarMac::new(CarConfig::new(car(1)));
-    let body = [0x42u8, 0x02, 0, 0, 0, 0];
+    let body = [0x62u8, 0x02, 0, 0, 0, 0];
     let mut raw = body.to_vec();
     raw.extend_from_slice(&CRC16.checksum(&body).to_le_bytes());
     let mut enc = [0u8; 32];
@@ -667,4 +709,284 @@ fn too_old_requests_and_window_reset_after_silence() {
     c.push_rx(later, &request_from(2, 1, old));
     assert_eq!(requests_delivered(&events(&mut c)), [old]);
     assert_eq!(c.stats().too_old, 1);
+}
+
+// ---- sessions (protocol version 2) ----
+
+/// A ground station and cars on a lossless in-memory channel, stepped 1 ms at a time; cars
+/// answer every command with its payload and record what they executed.
+struct Net {
+    g: GroundStation,
+    cars: std::vec::Vec<CarMac>,
+    now: u64,
+    executed: std::vec::Vec<(u8, u32, std::vec::Vec<u8>)>,
+    replies: std::vec::Vec<RequestHandle>,
+    ground_beats: std::vec::Vec<u8>,
+}
+
+impl Net {
+    fn new(first_counter: u32, cars: &[u8]) -> Self {
+        Net {
+            g: GroundStation::new(GroundConfig::new(Key::new(KEY), first_counter)),
+            cars: cars.iter().map(|&id| keyed_car(id)).collect(),
+            now: 0,
+            executed: std::vec::Vec::new(),
+            replies: std::vec::Vec::new(),
+            ground_beats: std::vec::Vec::new(),
+        }
+    }
+
+    /// Everything sent on the channel during the run is appended to `tape`.
+    fn run_ms(&mut self, ms: u64, tape: &mut std::vec::Vec<u8>) {
+        for _ in 0..ms {
+            self.now += 1_000;
+            let now = self.now;
+            self.g.poll(now);
+            let from_ground = drain_ground(&mut self.g);
+            tape.extend_from_slice(&from_ground);
+            let mut from_cars = std::vec::Vec::new();
+            for c in &mut self.cars {
+                c.push_rx(now, &from_ground);
+                c.poll(now);
+                for e in events(c) {
+                    match e {
+                        Event::Request(inc) if inc.id.counter.is_some() => {
+                            let counter = inc.id.counter.unwrap();
+                            self.executed
+                                .push((c.id().get(), counter, inc.payload.to_vec()));
+                            let _ = c.reply(inc.id, inc.tag, &inc.payload);
+                        }
+                        Event::Heartbeat {
+                            from: Address::Ground,
+                            ..
+                        } => self.ground_beats.push(c.id().get()),
+                        _ => {}
+                    }
+                }
+                from_cars.extend(drain(c));
+            }
+            tape.extend_from_slice(&from_cars);
+            self.g.push_rx(now, &from_cars);
+            for e in ground_events(&mut self.g) {
+                if let Event::Reply { handle, .. } = e {
+                    self.replies.push(handle);
+                }
+            }
+        }
+    }
+
+    fn command(&mut self, car_id: u8, payload: &[u8]) -> RequestHandle {
+        self.g
+            .command(self.now, Address::Car(car(car_id)), 1, payload)
+            .unwrap()
+    }
+}
+
+fn frames_of(tape: &[u8]) -> std::vec::Vec<Frame> {
+    let mut d = Deframer::new();
+    tape.iter()
+        .filter_map(|b| d.push(*b))
+        .filter_map(Result::ok)
+        .collect()
+}
+
+#[test]
+fn a_car_joins_a_session_before_any_command_is_executed() {
+    let mut net = Net::new(10, &[4]);
+    let mut tape = std::vec::Vec::new();
+    // Sent before the car has a session: executed after its Hello was answered, once.
+    let h = net.command(4, b"first");
+    net.run_ms(500, &mut tape);
+    assert!(net.replies.contains(&h));
+    assert_eq!(net.executed, [(4, 10, b"first".to_vec())]);
+    let frames = frames_of(&tape);
+    let hello = frames.iter().position(|f| matches!(f, Frame::Hello { .. }));
+    let open = frames
+        .iter()
+        .position(|f| matches!(f, Frame::SessionOpen { .. }));
+    assert!(hello.unwrap() < open.unwrap(), "{frames:?}");
+    let c = &net.cars[0];
+    assert_eq!(c.session().unwrap().epoch, net.g.epoch());
+    assert_eq!(c.stats().sessions_opened, 1);
+}
+
+#[test]
+fn commands_recorded_before_a_restart_are_not_executed_after_it() {
+    let mut net = Net::new(100, &[4]);
+    let mut tape = std::vec::Vec::new();
+    net.run_ms(100, &mut tape);
+    net.command(4, b"go");
+    net.run_ms(200, &mut tape);
+    assert_eq!(net.executed.len(), 1);
+    let recorded: std::vec::Vec<u8> = frames_of(&tape)
+        .iter()
+        .filter(|f| matches!(f, Frame::AuthCommand { .. } | Frame::GroundBeat { .. }))
+        .flat_map(|f| encode_frame(f).unwrap())
+        .collect();
+    // The car restarts: a new endpoint with the next boot count.
+    let mut cfg = CarConfig::new(car(4));
+    cfg.key = Some(Key::new(KEY));
+    cfg.boot = 1;
+    net.cars[0] = CarMac::new(cfg);
+    // Replayed before it has a session: nothing can be verified, it asks for one.
+    let now = net.now;
+    net.cars[0].push_rx(now, &recorded);
+    assert!(events(&mut net.cars[0]).is_empty());
+    assert!(net.cars[0].stats().auth_no_session >= 1);
+    // Replayed again once the live ground station gave it a session: too old.
+    net.run_ms(300, &mut tape);
+    assert!(net.cars[0].session().is_some());
+    let now = net.now;
+    net.cars[0].push_rx(now, &recorded);
+    assert!(events(&mut net.cars[0]).is_empty());
+    assert!(net.cars[0].stats().auth_replay >= 1);
+    // The ground station's next command still works.
+    net.command(4, b"next");
+    net.run_ms(300, &mut tape);
+    assert_eq!(
+        net.executed
+            .iter()
+            .map(|e| e.1)
+            .collect::<std::vec::Vec<_>>(),
+        [100, 101]
+    );
+}
+
+#[test]
+fn the_last_counter_leads_to_a_new_session_not_a_deaf_car() {
+    let mut net = Net::new(u32::MAX - 1, &[2, 3]);
+    let mut tape = std::vec::Vec::new();
+    net.run_ms(100, &mut tape);
+    let first_epoch = net.g.epoch();
+    for (i, car_id) in [2u8, 3, 2, 3].into_iter().enumerate() {
+        let h = net.command(car_id, &[i as u8]);
+        net.run_ms(600, &mut tape);
+        assert!(
+            net.replies.contains(&h),
+            "command {i} not answered: {:?} {:?} {:?} g {:?} epoch {}",
+            net.cars[0].stats(),
+            net.cars[0].session(),
+            net.cars[1].session(),
+            net.g.stats(),
+            net.g.epoch()
+        );
+    }
+    assert_eq!(net.g.epoch(), first_epoch.wrapping_add(1));
+    let counters: std::vec::Vec<u32> = net.executed.iter().map(|e| e.1).collect();
+    assert_eq!(counters, [u32::MAX - 1, u32::MAX, 1, 2]);
+    for c in &net.cars {
+        assert_eq!(c.session().unwrap().epoch, net.g.epoch());
+    }
+}
+
+#[test]
+fn only_authentic_fresh_ground_heartbeats_are_heard() {
+    let mut net = Net::new(1, &[6]);
+    let mut tape = std::vec::Vec::new();
+    net.run_ms(2_500, &mut tape);
+    let heard = net.ground_beats.len();
+    assert!((2..=3).contains(&heard), "{heard}");
+    let recorded: std::vec::Vec<Frame> = frames_of(&tape)
+        .into_iter()
+        .filter(|f| matches!(f, Frame::GroundBeat { .. }))
+        .collect();
+    let beats: std::vec::Vec<u8> = recorded
+        .iter()
+        .flat_map(|f| encode_frame(f).unwrap())
+        .collect();
+    let c = &mut net.cars[0];
+    let now = net.now;
+    let before = *c.stats();
+    // Replayed heartbeats.
+    c.push_rx(now, &beats);
+    // A plain heartbeat from the ground station's address (what anybody can send).
+    let mut raw = [0x42u8, 0x00, 0x00, 0x00, 0x00, 0x00, 0, 0];
+    let crc = CRC16.checksum(&raw[..6]).to_le_bytes();
+    raw[6..].copy_from_slice(&crc);
+    let mut enc = [0u8; 16];
+    let n = cobs::encode(&raw, &mut enc);
+    c.push_rx(now, &enc[..n]);
+    c.push_rx(now, &[0]);
+    // A heartbeat of a ground station with another key, and one of our key in another epoch
+    // (a recording from an earlier session).
+    for (key, epoch) in [([9u8; 16], net.g.epoch()), (KEY, net.g.epoch() ^ 1)] {
+        let mut f = Frame::GroundBeat {
+            epoch,
+            beat: 1_000,
+            mac: [0; AUTH_TAG_LEN],
+        };
+        auth::sign(&Key::new(key), 0, &mut f).unwrap();
+        c.push_rx(now, &encode_frame(&f).unwrap());
+    }
+    assert!(
+        !events(c).iter().any(|e| matches!(
+            e,
+            Event::Heartbeat {
+                from: Address::Ground,
+                ..
+            }
+        )),
+        "a heartbeat that is not fresh and authentic was heard"
+    );
+    let after = *c.stats();
+    assert_eq!(
+        after.auth_replay - before.auth_replay,
+        recorded.len() as u32
+    );
+    assert_eq!(after.rx_malformed - before.rx_malformed, 1);
+    assert_eq!(after.auth_bad_mac - before.auth_bad_mac, 1);
+    assert_eq!(after.auth_no_session - before.auth_no_session, 1);
+    // The live ground station is still heard.
+    net.run_ms(1_000, &mut tape);
+    assert!(net.ground_beats.len() > heard);
+}
+
+#[test]
+fn a_session_opening_is_good_for_one_hello_only() {
+    let mut net = Net::new(1, &[8]);
+    let mut tape = std::vec::Vec::new();
+    net.run_ms(50, &mut tape);
+    let open = frames_of(&tape)
+        .into_iter()
+        .find(|f| matches!(f, Frame::SessionOpen { .. }))
+        .expect("session opened");
+    let c = &mut net.cars[0];
+    let refused = c.stats().sessions_refused;
+    c.push_rx(net.now, &encode_frame(&open).unwrap());
+    assert_eq!(c.stats().sessions_refused, refused + 1);
+    // A forged one for the car's next Hello is refused too.
+    if let Frame::SessionOpen { nonce, mac, .. } = open {
+        let forged = Frame::SessionOpen {
+            dst: car(8),
+            nonce: nonce + 1,
+            epoch: 77,
+            command_min: 0,
+            beat_min: 0,
+            mac,
+        };
+        c.push_rx(net.now, &encode_frame(&forged).unwrap());
+    }
+    assert_eq!(c.stats().sessions_refused, refused + 2);
+    assert_eq!(c.session().unwrap().epoch, net.g.epoch());
+}
+
+proptest! {
+    /// Every authenticated kind verifies with its key and epoch and with nothing else.
+    #[test]
+    fn signed_frames_verify_only_under_their_key(f in arb_frame(), epoch in any::<u32>(), k in any::<[u8; 16]>()) {
+        let key = Key::new(k);
+        let mut f = f;
+        auth::sign(&key, epoch, &mut f).unwrap();
+        let authenticated = matches!(
+            f,
+            Frame::AuthCommand { .. } | Frame::GroundBeat { .. } | Frame::Hello { .. } | Frame::SessionOpen { .. }
+        );
+        prop_assert_eq!(auth::verify(&key, epoch, &f), authenticated);
+        let mut other = k;
+        other[0] ^= 1;
+        prop_assert!(!auth::verify(&Key::new(other), epoch, &f));
+        // Only a command is bound to the epoch (the heartbeat carries it on air).
+        let bound = matches!(f, Frame::AuthCommand { .. });
+        prop_assert_eq!(auth::verify(&key, epoch ^ 1, &f), authenticated && !bound);
+    }
 }

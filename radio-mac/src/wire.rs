@@ -10,8 +10,10 @@ use crate::addr::{Address, CarId};
 use crc::{Crc, CRC_16_IBM_3740};
 use heapless::Vec;
 
-/// Protocol version carried in the top three bits of every header byte.
-pub const VERSION: u8 = 1;
+/// Protocol version carried in the top three bits of every header byte. Version 2 added the
+/// ground station's sessions (kinds 7..=9; the session epoch in the MAC of kind 6) and made
+/// the ground station's heartbeat authenticated (kind 7 instead of kind 2).
+pub const VERSION: u8 = 2;
 /// Largest opaque payload of a request, reply or authenticated command.
 pub const MAX_PAYLOAD: usize = 32;
 /// Length of the truncated SipHash-2-4 tag on authenticated commands.
@@ -54,6 +56,12 @@ pub enum Kind {
     Group = 5,
     /// Ground-station command with a keyed MAC.
     AuthCommand = 6,
+    /// The ground station's authenticated heartbeat.
+    GroundBeat = 7,
+    /// A car asks the ground station for a session.
+    Hello = 8,
+    /// The ground station opens a session with one car.
+    SessionOpen = 9,
 }
 
 impl Kind {
@@ -65,6 +73,9 @@ impl Kind {
             4 => Kind::Reply,
             5 => Kind::Group,
             6 => Kind::AuthCommand,
+            7 => Kind::GroundBeat,
+            8 => Kind::Hello,
+            9 => Kind::SessionOpen,
             kind => return Err(FrameError::UnknownKind { kind }),
         })
     }
@@ -365,6 +376,40 @@ pub enum Frame {
         /// Truncated SipHash-2-4 tag.
         mac: [u8; AUTH_TAG_LEN],
     },
+    /// The ground station's heartbeat, authenticated and counted, to every car.
+    GroundBeat {
+        /// The ground station's session epoch.
+        epoch: u32,
+        /// Heartbeat counter of that epoch (replay protection).
+        beat: u32,
+        /// Truncated SipHash-2-4 tag.
+        mac: [u8; AUTH_TAG_LEN],
+    },
+    /// A car asks the ground station to open a session; signed by the car.
+    Hello {
+        /// The car.
+        src: CarId,
+        /// Single-use nonce: the car's boot counter in the high 32 bits, a Hello counter in
+        /// the low 32 bits.
+        nonce: u64,
+        /// Truncated SipHash-2-4 tag.
+        mac: [u8; AUTH_TAG_LEN],
+    },
+    /// The ground station's answer to a [`Frame::Hello`]: the session the car joins.
+    SessionOpen {
+        /// The car.
+        dst: CarId,
+        /// The nonce of the car's Hello.
+        nonce: u64,
+        /// The ground station's session epoch.
+        epoch: u32,
+        /// Lowest command counter the car may accept in this session.
+        command_min: u32,
+        /// Lowest heartbeat counter the car may accept in this session.
+        beat_min: u32,
+        /// Truncated SipHash-2-4 tag.
+        mac: [u8; AUTH_TAG_LEN],
+    },
 }
 
 struct Reader<'a> {
@@ -388,6 +433,16 @@ impl<'a> Reader<'a> {
             self.u8()?,
             self.u8()?,
         ]))
+    }
+    fn u64(&mut self) -> Option<u64> {
+        Some(u64::from(self.u32()?) | (u64::from(self.u32()?) << 32))
+    }
+    fn mac(&mut self) -> Option<[u8; AUTH_TAG_LEN]> {
+        let mut m = [0u8; AUTH_TAG_LEN];
+        for b in &mut m {
+            *b = self.u8()?;
+        }
+        Some(m)
     }
     fn rest(&self) -> &'a [u8] {
         self.buf.get(self.pos..).unwrap_or(&[])
@@ -461,6 +516,9 @@ impl Frame {
             Frame::Reply { .. } => Kind::Reply,
             Frame::Group { .. } => Kind::Group,
             Frame::AuthCommand { .. } => Kind::AuthCommand,
+            Frame::GroundBeat { .. } => Kind::GroundBeat,
+            Frame::Hello { .. } => Kind::Hello,
+            Frame::SessionOpen { .. } => Kind::SessionOpen,
         }
     }
 
@@ -472,7 +530,10 @@ impl Frame {
             | Frame::Request { src, .. }
             | Frame::Reply { src, .. }
             | Frame::Group { src, .. } => *src,
-            Frame::AuthCommand { .. } => Address::Ground,
+            Frame::Hello { src, .. } => Address::Car(*src),
+            Frame::AuthCommand { .. } | Frame::GroundBeat { .. } | Frame::SessionOpen { .. } => {
+                Address::Ground
+            }
         }
     }
 
@@ -531,6 +592,11 @@ impl Frame {
                 let mode = Mode::from_byte(r.u8().ok_or(bad)?)?;
                 let neighbours = r.u8().ok_or(bad)?;
                 let uptime_s = r.u16().ok_or(bad)?;
+                // The ground station's heartbeat is a GroundBeat: a plain one from address
+                // 0x00 is what anybody could send.
+                if src == Address::Ground {
+                    return Err(FrameError::InvalidSource);
+                }
                 Frame::Heartbeat {
                     src: sender(src)?,
                     beat: Heartbeat {
@@ -640,6 +706,42 @@ impl Frame {
                     mac,
                 }
             }
+            Kind::GroundBeat => {
+                if src != Address::Ground {
+                    return Err(FrameError::InvalidSource);
+                }
+                Frame::GroundBeat {
+                    epoch: r.u32().ok_or(bad)?,
+                    beat: r.u32().ok_or(bad)?,
+                    mac: r.mac().ok_or(bad)?,
+                }
+            }
+            Kind::Hello => {
+                let Address::Car(src) = src else {
+                    return Err(FrameError::InvalidSource);
+                };
+                Frame::Hello {
+                    src,
+                    nonce: r.u64().ok_or(bad)?,
+                    mac: r.mac().ok_or(bad)?,
+                }
+            }
+            Kind::SessionOpen => {
+                if src != Address::Ground {
+                    return Err(FrameError::InvalidSource);
+                }
+                let Address::Car(dst) = Address::from_byte(r.u8().ok_or(bad)?)? else {
+                    return Err(FrameError::InvalidDestination);
+                };
+                Frame::SessionOpen {
+                    dst,
+                    nonce: r.u64().ok_or(bad)?,
+                    epoch: r.u32().ok_or(bad)?,
+                    command_min: r.u32().ok_or(bad)?,
+                    beat_min: r.u32().ok_or(bad)?,
+                    mac: r.mac().ok_or(bad)?,
+                }
+            }
         };
         if r.pos != data.len() {
             return Err(bad);
@@ -664,6 +766,8 @@ impl Frame {
                     }
                 }
                 Frame::AuthCommand { payload, .. } => 6 + payload.len() + AUTH_TAG_LEN,
+                Frame::GroundBeat { .. } | Frame::Hello { .. } => 8 + AUTH_TAG_LEN,
+                Frame::SessionOpen { .. } => 21 + AUTH_TAG_LEN,
             }
     }
 
@@ -691,6 +795,9 @@ impl Frame {
                 w.u8(state.mode.to_byte()?)?;
             }
             Frame::Heartbeat { beat, .. } => {
+                if src == Address::Ground {
+                    return Err(EncodeError::InvalidSource);
+                }
                 w.u8(beat.mode.to_byte()?)?;
                 w.u8(beat.neighbours)?;
                 w.u16(beat.uptime_s)?;
@@ -756,6 +863,30 @@ impl Frame {
                 w.bytes(payload)?;
                 w.bytes(mac)?;
             }
+            Frame::GroundBeat { epoch, beat, mac } => {
+                w.bytes(&epoch.to_le_bytes())?;
+                w.bytes(&beat.to_le_bytes())?;
+                w.bytes(mac)?;
+            }
+            Frame::Hello { nonce, mac, .. } => {
+                w.bytes(&nonce.to_le_bytes())?;
+                w.bytes(mac)?;
+            }
+            Frame::SessionOpen {
+                dst,
+                nonce,
+                epoch,
+                command_min,
+                beat_min,
+                mac,
+            } => {
+                w.u8(dst.get())?;
+                w.bytes(&nonce.to_le_bytes())?;
+                w.bytes(&epoch.to_le_bytes())?;
+                w.bytes(&command_min.to_le_bytes())?;
+                w.bytes(&beat_min.to_le_bytes())?;
+                w.bytes(mac)?;
+            }
         }
         let crc = CRC16.checksum(w.buf.get(..w.pos).ok_or(EncodeError::BufferTooSmall)?);
         w.u16(crc)?;
@@ -818,11 +949,11 @@ mod tests {
         let mut raw = [0u8; MAX_RAW];
         let n = f.emit_raw(&mut raw).unwrap();
         let body = [
-            0x21, 0x05, 0x07, 0x40, 0x01, 0xE0, 0x01, 0x23, 0x06, 0x38, 0xFF, 0x12,
+            0x41, 0x05, 0x07, 0x40, 0x01, 0xE0, 0x01, 0x23, 0x06, 0x38, 0xFF, 0x12,
         ];
         assert_eq!(&raw[..12], &body);
-        // CRC-16/IBM-3740 of the 12 bytes above is 0xA5E6 (computed independently).
-        assert_eq!(&raw[12..n], &[0xE6, 0xA5]);
+        // CRC-16/IBM-3740 of the 12 bytes above is 0x1606 (computed independently).
+        assert_eq!(&raw[12..n], &[0x06, 0x16]);
         assert_eq!(n, 14);
         let mut enc = [0u8; MAX_ENCODED];
         let m = f.encode(&mut enc).unwrap();
@@ -834,30 +965,39 @@ mod tests {
         assert_eq!(Frame::parse(&raw[..n]), Ok(f));
     }
 
-    /// COBS with zeros inside: heartbeat from the ground station (src 0x00).
+    /// COBS with zeros inside: the ground station's heartbeat (src 0x00), epoch 0, beat 0x0102.
     #[test]
-    fn heartbeat_cobs_bytes() {
-        let f = Frame::Heartbeat {
-            src: Address::Ground,
-            beat: Heartbeat {
-                mode: Mode::default(),
-                neighbours: 3,
-                uptime_s: 0x0102,
-            },
+    fn ground_beat_cobs_bytes() {
+        let f = Frame::GroundBeat {
+            epoch: 0,
+            beat: 0x0102,
+            mac: [0x11; AUTH_TAG_LEN],
         };
         let mut raw = [0u8; MAX_RAW];
         let n = f.emit_raw(&mut raw).unwrap();
-        assert_eq!(&raw[..6], &[0x22, 0x00, 0x00, 0x03, 0x02, 0x01]);
-        // CRC-16/IBM-3740 of the 6 bytes above is 0x9F4B (computed independently).
-        assert_eq!(&raw[6..n], &[0x4B, 0x9F]);
+        assert_eq!(&raw[..10], &[0x47, 0x00, 0, 0, 0, 0, 0x02, 0x01, 0, 0]);
+        // CRC-16/IBM-3740 of the 18 bytes before it is 0xBF02 (computed independently).
+        assert_eq!(&raw[18..n], &[0x02, 0xBF]);
         let mut enc = [0u8; MAX_ENCODED];
         let m = f.encode(&mut enc).unwrap();
-        // 22 | 00 | 00 | 03 02 01 4B 9F  ->  02 22 | 01 | 06 03 02 01 4B 9F | 00
         assert_eq!(
             &enc[..m],
-            &[0x02, 0x22, 0x01, 0x06, 0x03, 0x02, 0x01, 0x4B, 0x9F, 0x00]
+            &[
+                0x02, 0x47, 0x01, 0x01, 0x01, 0x01, 0x03, 0x02, 0x01, 0x01, 0x0B, 0x11, 0x11, 0x11,
+                0x11, 0x11, 0x11, 0x11, 0x11, 0x02, 0xBF, 0x00
+            ]
         );
         assert_eq!(Frame::parse(&raw[..n]), Ok(f));
+        // A plain heartbeat from the ground station's address is refused both ways.
+        let plain = Frame::Heartbeat {
+            src: Address::Ground,
+            beat: Heartbeat::default(),
+        };
+        assert_eq!(plain.emit_raw(&mut raw), Err(EncodeError::InvalidSource));
+        assert_eq!(
+            Frame::parse(&with_crc(&[0x42, 0x00, 0x00, 0x03, 0x02, 0x01])),
+            Err(FrameError::InvalidSource)
+        );
     }
 
     #[test]
@@ -871,7 +1011,7 @@ mod tests {
         };
         let mut raw = [0u8; MAX_RAW];
         let n = f.emit_raw(&mut raw).unwrap();
-        assert_eq!(&raw[..7], &[0x23, 0x02, 0x09, 0x34, 0x12, 0x41, 0xE8]);
+        assert_eq!(&raw[..7], &[0x43, 0x02, 0x09, 0x34, 0x12, 0x41, 0xE8]);
         assert_eq!(n, 9);
         assert_eq!(Frame::parse(&raw[..n]), Ok(f));
     }
@@ -889,7 +1029,7 @@ mod tests {
         let n = f.emit_raw(&mut raw).unwrap();
         assert_eq!(
             &raw[..10],
-            &[0x26, 0x00, 0x7F, 0x0D, 0x0C, 0x0B, 0x0A, 0x07, 0x01, 0x02]
+            &[0x46, 0x00, 0x7F, 0x0D, 0x0C, 0x0B, 0x0A, 0x07, 0x01, 0x02]
         );
         assert_eq!(&raw[10..18], &[0x11; 8]);
         assert_eq!(n, 20);
@@ -909,7 +1049,7 @@ mod tests {
             Frame::parse(&[1, 2, 3]),
             Err(FrameError::TooShort { len: 3 })
         );
-        let mut good = with_crc(&[0x22, 0x00, 0x00, 0x00, 0x00, 0x00]);
+        let mut good = with_crc(&[0x42, 0x01, 0x00, 0x00, 0x00, 0x00]);
         assert!(Frame::parse(&good).is_ok());
         good[3] ^= 1;
         assert!(matches!(
@@ -917,49 +1057,78 @@ mod tests {
             Err(FrameError::ChecksumMismatch { .. })
         ));
         assert_eq!(
-            Frame::parse(&with_crc(&[0x42, 0x00, 0x00, 0x00, 0x00, 0x00])),
-            Err(FrameError::UnsupportedVersion { got: 2 })
+            Frame::parse(&with_crc(&[0x22, 0x01, 0x00, 0x00, 0x00, 0x00])),
+            Err(FrameError::UnsupportedVersion { got: 1 })
         );
         assert_eq!(
-            Frame::parse(&with_crc(&[0x3F, 0x00])),
+            Frame::parse(&with_crc(&[0x5F, 0x00])),
             Err(FrameError::UnknownKind { kind: 0x1F })
         );
         assert_eq!(
-            Frame::parse(&with_crc(&[0x22, 0x00, 0x00])),
+            Frame::parse(&with_crc(&[0x42, 0x01, 0x00])),
             Err(FrameError::BadLength {
                 kind: Kind::Heartbeat,
                 len: 5
             })
         );
         assert_eq!(
-            Frame::parse(&with_crc(&[0x22, 0x80, 0, 0, 0, 0])),
+            Frame::parse(&with_crc(&[0x42, 0x80, 0, 0, 0, 0])),
             Err(FrameError::InvalidAddress { value: 0x80 })
         );
         // State from the ground station.
         assert_eq!(
-            Frame::parse(&with_crc(&[0x21, 0x00, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])),
+            Frame::parse(&with_crc(&[0x41, 0x00, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])),
             Err(FrameError::InvalidSource)
         );
         // X above 14 bits.
         assert_eq!(
-            Frame::parse(&with_crc(&[0x21, 0x01, 0, 0, 0x40, 0, 0, 0, 0, 0, 0, 0])),
+            Frame::parse(&with_crc(&[0x41, 0x01, 0, 0, 0x40, 0, 0, 0, 0, 0, 0, 0])),
             Err(FrameError::FieldOutOfRange { field: Field::X })
         );
         // Request to broadcast.
         assert_eq!(
-            Frame::parse(&with_crc(&[0x23, 0x01, 0x7F, 0, 0, 0])),
+            Frame::parse(&with_crc(&[0x43, 0x01, 0x7F, 0, 0, 0])),
             Err(FrameError::InvalidDestination)
         );
         // Authenticated command from a car.
         assert_eq!(
             Frame::parse(&with_crc(&[
-                0x26, 0x01, 0x7F, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8
+                0x46, 0x01, 0x7F, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8
             ])),
             Err(FrameError::InvalidSource)
         );
         assert_eq!(
-            Frame::parse(&with_crc(&[0x25, 0x01, 0x7F, 0, 0, 9])),
+            Frame::parse(&with_crc(&[0x45, 0x01, 0x7F, 0, 0, 9])),
             Err(FrameError::UnknownGroupMsg { value: 9 })
+        );
+        // Session frames: a Hello from the ground station, a session opening from a car or
+        // for the ground station.
+        let mut hello = [0u8; 18];
+        hello[0] = 0x48;
+        assert_eq!(
+            Frame::parse(&with_crc(&hello)),
+            Err(FrameError::InvalidSource)
+        );
+        let mut open = [0u8; 31];
+        open[0] = 0x49;
+        open[1] = 0x02;
+        assert_eq!(
+            Frame::parse(&with_crc(&open)),
+            Err(FrameError::InvalidSource)
+        );
+        open[1] = 0x00;
+        assert_eq!(
+            Frame::parse(&with_crc(&open)),
+            Err(FrameError::InvalidDestination)
+        );
+        open[2] = 0x03;
+        assert!(Frame::parse(&with_crc(&open)).is_ok());
+        assert_eq!(
+            Frame::parse(&with_crc(&open[..30])),
+            Err(FrameError::BadLength {
+                kind: Kind::SessionOpen,
+                len: 32
+            })
         );
     }
 

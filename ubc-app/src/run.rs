@@ -64,8 +64,8 @@ impl LogSink for Defmt {
             LogEvent::LbcStateLost => {
                 defmt::warn!("lbc refused motion with drive enabled: reset")
             }
-            LogEvent::RadioStarted { car_id } => {
-                defmt::info!("radio up: car={=u8}", car_id)
+            LogEvent::RadioStarted { car_id, keyed } => {
+                defmt::info!("radio up: car={=u8} keyed={=bool}", car_id, keyed)
             }
             LogEvent::UserLinkLost => defmt::warn!("user link lost: stop"),
             LogEvent::UserLinkRestored => defmt::info!("user link restored"),

@@ -77,6 +77,8 @@ struct Sim {
     seed: u32,
     /// Another car on the radio, broadcasting a fixed state (heard by the program only).
     other: Option<CarMac>,
+    /// Every byte the ground station sent (what a listener on the channel records).
+    tape: Vec<u8>,
 }
 
 impl Sim {
@@ -109,6 +111,7 @@ impl Sim {
             noise_every: 0,
             seed: 0x1234_5678,
             other: None,
+            tape: Vec::new(),
         }
     }
 
@@ -176,6 +179,7 @@ impl Sim {
                     break;
                 }
                 let mut bytes = buf[..n].to_vec();
+                self.tape.extend_from_slice(&bytes);
                 self.corrupt(&mut bytes);
                 self.radio_port.rx.extend(bytes);
             }
@@ -469,7 +473,10 @@ fn silent_lbc_is_retried_with_backoff_until_it_answers() {
     assert!((3..=10).contains(&failures), "{failures}");
     // The radio started with the fallback ID meanwhile; connect the LBC.
     s.lbc_connected = true;
-    assert!(s.run_until(3_000, |s| s.prog.phase() == Phase::Running));
+    let t = s.now;
+    // The longest back-off (2 s) plus a bring-up with its ten EEPROM steps (about 1 s).
+    assert!(s.run_until(4_000, |s| s.prog.phase() == Phase::Running));
+    assert!(s.now - t > 1_000_000);
     s.run_ms(100);
     assert_eq!(s.lbc.leds().0[1].rate(), LedRate::Blink2Hz);
     assert!(s.lbc.drive_enabled());
@@ -814,4 +821,288 @@ fn group_start_broadcast_reaches_the_car() {
     let st = s.status();
     assert_eq!(st.group_kind, 2);
     assert!(st.group_converged, "{st:?}");
+}
+
+// ----- security: late LBC, replay after a reboot, forged heartbeats -----------------------
+
+const REAL_KEY: [u8; 16] = *b"provisioned-key!";
+
+/// An LBC whose EEPROM holds `REAL_KEY` in registers 0x38..=0x3F.
+fn provisioned_lbc() -> Lbc {
+    let mut image = lbc_emu::EepromImage::factory(CAR);
+    for (i, w) in Key::new(REAL_KEY).to_eeprom_words().into_iter().enumerate() {
+        assert!(image.set(0x38 + i as u8, w));
+    }
+    Lbc::new(
+        LbcConfig::default(),
+        image,
+        Box::new(lbc_emu::MemoryStore::default()),
+    )
+}
+
+/// One command from `gs` to car `id`, run until answered or `ms` passed; the reply or `None`.
+fn try_command(
+    s: &mut Sim,
+    gs: &mut GroundStation,
+    id: u8,
+    req: &Request,
+    ms: u64,
+) -> Option<Reply> {
+    let mut buf = [0u8; 32];
+    let n = req.encode(&mut buf).unwrap();
+    let h = gs
+        .command(
+            s.now,
+            Address::Car(CarId::new(id).unwrap()),
+            req.tag() as u8,
+            &buf[..n],
+        )
+        .unwrap();
+    let mut out = [0u8; 256];
+    for _ in 0..ms {
+        s.step();
+        let car_bytes: Vec<u8> = s.radio_port.tx.clone();
+        gs.push_rx(s.now, &car_bytes);
+        gs.poll(s.now);
+        let n = gs.transmit(&mut out);
+        s.radio_port.rx.extend(&out[..n]);
+        while let Some(ev) = gs.next_event() {
+            match ev {
+                Event::Reply {
+                    handle,
+                    tag,
+                    payload,
+                    ..
+                } if handle == h => return Some(Reply::decode(tag, &payload).unwrap()),
+                Event::Failed { handle, .. } if handle == h => return None,
+                _ => {}
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn a_late_lbc_leaves_the_car_deaf_to_commands_until_it_answers() {
+    // The attacker's ground station has the public default key; the car's own has the key
+    // provisioned in its EEPROM, which it cannot read while the LBC is silent.
+    let mut s = Sim::with_lbc(Config::default(), provisioned_lbc(), REAL_KEY);
+    s.ground_on = false;
+    s.lbc_connected = false;
+    s.run_ms(5_000);
+    assert!(
+        s.logged(|e| *e
+            == LogEvent::RadioStarted {
+                car_id: 126,
+                keyed: false
+            })
+            == 1
+    );
+    // Bring-up keeps trying, with growing delays.
+    let delays: Vec<u32> = s
+        .log
+        .0
+        .iter()
+        .filter_map(|(_, e)| match e {
+            LogEvent::BringUpFailed { retry_in_ms, .. } => Some(*retry_in_ms),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        delays.len() >= 3 && delays.windows(2).all(|w| w[0] <= w[1]),
+        "{delays:?}"
+    );
+    assert_eq!(delays.last(), Some(&2_000));
+    let mut public = GroundStation::new(GroundConfig::new(Key::new(DEFAULT_KEY), 1));
+    let mut real = GroundStation::new(GroundConfig::new(Key::new(REAL_KEY), 1));
+    let read_key = Request::Lbc(Command::ReadEp(EepromAddress::new(0x38).unwrap()));
+    for gs in [&mut public, &mut real] {
+        assert_eq!(try_command(&mut s, gs, 126, &read_key, 2_500), None);
+        assert_eq!(try_command(&mut s, gs, 126, &Request::Status, 2_500), None);
+    }
+    let st = s.prog.radio_stats().unwrap();
+    assert!(st.auth_no_key >= 2, "{st:?}");
+    assert_eq!(s.prog.counters().console_requests, 0);
+
+    // The LBC answers: the radio restarts as car 7 with the provisioned key.
+    s.lbc_connected = true;
+    assert!(s.run_until(5_000, |s| s.prog.phase() == Phase::Running));
+    assert_eq!(
+        s.logged(|e| *e
+            == LogEvent::RadioStarted {
+                car_id: CAR,
+                keyed: true
+            }),
+        1
+    );
+    assert_eq!(s.lbc.eeprom().get(ubc_app::program::BOOT_REGISTER), Some(1));
+    let mut public = GroundStation::new(GroundConfig::new(Key::new(DEFAULT_KEY), 1));
+    assert_eq!(
+        try_command(&mut s, &mut public, CAR, &Request::Status, 2_500),
+        None
+    );
+    s.ground_on = true;
+    assert!(matches!(s.request(&Request::Status), Reply::Status(st) if st.car_id == CAR));
+    // No radio command reads or writes the key or the boot counter.
+    let writ = |reg: u8| Command::WritEp {
+        address: UserRegister::new(reg).unwrap(),
+        value: 0,
+    };
+    for cmd in [
+        Command::ReadEp(EepromAddress::new(0x38).unwrap()),
+        Command::ReadEp(EepromAddress::new(0x3F).unwrap()),
+        Command::ReadEp(EepromAddress::new(0x37).unwrap()),
+        writ(0x3A),
+        writ(0x37),
+    ] {
+        assert_eq!(
+            s.request(&Request::Lbc(cmd)),
+            Reply::Refused(Refusal::Protected),
+            "{cmd:?}"
+        );
+    }
+    assert!(matches!(
+        s.lbc(Command::ReadEp(EepromAddress::new(0x36).unwrap())),
+        LbcOutcome::Answer(_)
+    ));
+    assert_eq!(
+        s.lbc.eeprom().get(0x3A),
+        Some(Key::new(REAL_KEY).to_eeprom_words()[2])
+    );
+}
+
+#[test]
+fn a_command_recorded_before_a_reboot_is_not_executed_after_it() {
+    let mut s = Sim::new();
+    s.bring_up();
+    assert_eq!(s.lbc.eeprom().get(ubc_app::program::BOOT_REGISTER), Some(1));
+    let pattern = |d: u8| GpioPattern::new(GpioRate::Hz10, Duty::new(d).unwrap());
+    let gpo = |d: u8| Command::WritGpo {
+        gpio0: pattern(d),
+        gpio1: pattern(d),
+    };
+    // The ground station sets GPIO pattern 7; a listener records the air.
+    let start = s.tape.len();
+    assert!(matches!(s.lbc(gpo(7)), LbcOutcome::Answer(_)));
+    let recorded = s.tape[start..].to_vec();
+    assert!(matches!(s.lbc(gpo(3)), LbcOutcome::Answer(_)));
+    assert_eq!(s.lbc.gpio().0[0], pattern(3));
+
+    // The upper board reboots (the LBC keeps running, its EEPROM keeps the boot counter).
+    s.prog = Program::new(Config::default());
+    s.bring_up();
+    assert_eq!(s.lbc.eeprom().get(ubc_app::program::BOOT_REGISTER), Some(2));
+    // Replayed while the car waits for its session, then again once the ground station
+    // answered its Hello: neither time executed.
+    s.radio_port.rx.extend(&recorded);
+    s.run_ms(300);
+    assert!(s.prog.radio_stats().unwrap().sessions_opened >= 1);
+    s.radio_port.rx.extend(&recorded);
+    s.run_ms(300);
+    assert_ne!(
+        s.lbc.gpio().0[0],
+        pattern(7),
+        "the recorded command ran again"
+    );
+    let st = s.prog.radio_stats().unwrap();
+    assert!(st.auth_replay + st.auth_no_session >= 1, "{st:?}");
+    // The ground station goes on as before.
+    assert!(matches!(s.lbc(gpo(5)), LbcOutcome::Answer(_)));
+    assert_eq!(s.lbc.gpio().0[0], pattern(5));
+}
+
+/// Raw bytes on air for `frame` (radio-mac refuses to encode a plain ground heartbeat, so that
+/// one is built by hand).
+fn plain_ground_heartbeat() -> Vec<u8> {
+    let body = [
+        (radio_mac::wire::VERSION << 5) | 2,
+        0x00,
+        0x00,
+        0x00,
+        0x10,
+        0x00,
+    ];
+    let mut raw = body.to_vec();
+    raw.extend_from_slice(&radio_mac::wire::CRC16.checksum(&body).to_le_bytes());
+    // COBS by hand: zeros at 1, 2, 3 and 5.
+    let mut enc = Vec::new();
+    let mut block = Vec::new();
+    for b in raw {
+        if b == 0 {
+            enc.push(block.len() as u8 + 1);
+            enc.append(&mut block);
+        } else {
+            block.push(b);
+        }
+    }
+    enc.push(block.len() as u8 + 1);
+    enc.append(&mut block);
+    enc.push(0);
+    enc
+}
+
+#[test]
+fn forged_replayed_or_foreign_heartbeats_do_not_keep_the_user_link() {
+    let mut s = Sim::new();
+    s.bring_up();
+    let sv = SteerVelocity {
+        steering: SteeringAngle::new(0).unwrap(),
+        velocity: Velocity::new(300).unwrap(),
+    };
+    assert!(matches!(s.lbc(Command::MoveSv(sv)), LbcOutcome::Answer(_)));
+    s.run_ms(2_500);
+    // What a listener recorded: among it, the ground station's heartbeats.
+    let mut d = radio_mac::Deframer::new();
+    let beats: Vec<radio_mac::Frame> = s
+        .tape
+        .iter()
+        .filter_map(|b| d.push(*b))
+        .filter_map(Result::ok)
+        .filter(|f| matches!(f, radio_mac::Frame::GroundBeat { .. }))
+        .collect();
+    assert!(beats.len() >= 2, "{beats:?}");
+    let heard = s.logged(|e| *e == LogEvent::UserLinkLost);
+    assert_eq!(heard, 0);
+    // The ground station goes silent; the attacker keeps sending heartbeats in its name.
+    s.ground_on = false;
+    for i in 0..10u32 {
+        let beat = 1_000_000 + i;
+        s.radio_port.rx.extend(plain_ground_heartbeat());
+        for f in &beats {
+            s.radio_port
+                .rx
+                .extend(radio_mac::wire::encode_frame(f).unwrap());
+        }
+        // Another testbed's ground station (another key), and ours in an old epoch.
+        for (key, epoch) in [
+            ([0x33u8; 16], s.ground.epoch()),
+            (DEFAULT_KEY, s.ground.epoch() ^ 7),
+        ] {
+            let mut f = radio_mac::Frame::GroundBeat {
+                epoch,
+                beat,
+                mac: [0; 8],
+            };
+            radio_mac::auth::sign(&Key::new(key), 0, &mut f).unwrap();
+            s.radio_port
+                .rx
+                .extend(radio_mac::wire::encode_frame(&f).unwrap());
+        }
+        s.run_ms(500);
+        if i == 2 {
+            // Less than the 3 s timeout since the ground station was last heard.
+            assert!(s.lbc.velocity_estimate_mm_s() > 150.0, "stopped too early");
+        }
+    }
+    assert_eq!(s.logged(|e| *e == LogEvent::UserLinkLost), 1);
+    assert!(s.lbc.velocity_estimate_mm_s().abs() < 20.0);
+    let st = s.prog.radio_stats().unwrap();
+    assert!(
+        st.auth_replay >= 10 && st.auth_bad_mac >= 10 && st.rx_malformed >= 10,
+        "{st:?}"
+    );
+    // The real ground station is heard again.
+    s.ground_on = true;
+    s.run_ms(1_500);
+    assert_eq!(s.logged(|e| *e == LogEvent::UserLinkRestored), 1);
 }

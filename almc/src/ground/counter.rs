@@ -1,7 +1,8 @@
 //! Persistence of the authenticated-command counter.
 //!
-//! Cars execute a command only if its counter is above the last one they accepted, so the
-//! ground station must never reuse a counter, even across runs. The next counter is kept in
+//! Cars execute a command only if its counter is above the last one they accepted in their
+//! session. Every run has its own random session epoch, which already keeps runs apart; the
+//! counter file keeps the counters growing across runs as well. The next counter is kept in
 //! a small text file (default `$XDG_STATE_HOME/almc/counter`, else
 //! `~/.local/state/almc/counter`), replaced atomically (write a temporary file, sync,
 //! rename) before each command goes out. A new session starts at the larger of the stored
@@ -34,8 +35,6 @@ pub enum CounterError {
         /// The file.
         path: PathBuf,
     },
-    /// Every counter has been used.
-    Exhausted,
 }
 
 impl fmt::Display for CounterError {
@@ -51,7 +50,6 @@ impl fmt::Display for CounterError {
                 "counter file {} does not hold a number; fix or delete it",
                 path.display()
             ),
-            Self::Exhausted => write!(f, "the command counter reached its maximum; change the key"),
         }
     }
 }

@@ -3,8 +3,9 @@
 //!
 //! [`GroundLink`] is the session other commands build on: the cars heard with their latest
 //! state, authenticated requests to one car (waiting for its reply), to every car heard, or
-//! broadcast, and a stream of protocol events. Command counters are persisted with
-//! [`CounterFile`] so that the cars' replay protection accepts every new session.
+//! broadcast, and a stream of protocol events. Every run signs under a fresh random session
+//! epoch (cars join it with a Hello, `docs/radio-protocol.md` section 6); command counters are
+//! also persisted with [`CounterFile`], so they keep growing across runs.
 
 pub mod counter;
 pub mod key;
@@ -345,10 +346,12 @@ const USER_MAX_ATTEMPTS: u8 = 10;
 
 impl GroundLink {
     /// Open the radio at `spec` (`unix:PATH`, `tcp:IP:PORT`, `serial:DEV[@BAUD]`) and start
-    /// the ground station with `key`; the first command uses `first_counter`.
+    /// the ground station with `key` in a new random session epoch; the first command uses
+    /// `first_counter`.
     pub fn open(spec: &str, key: Key, first_counter: u32) -> Result<Self, GroundError> {
         let spec: TransportSpec = spec.parse().map_err(GroundError::Spec)?;
         let mut config = GroundConfig::new(key, first_counter);
+        config.epoch = random_epoch();
         // A car answers a console request once its LBC has answered, which for EEPROM and
         // calibration commands (and their retries on the LBC link) can take several seconds:
         // keep retrying for about 6 s instead of radio-mac's default 1.9 s.
@@ -473,11 +476,8 @@ impl GroundLink {
                     return Err(GroundError::Closed(c));
                 }
                 let counter = inner.gs.next_counter();
-                // The counter after u32::MAX would wrap to 0, which every car rejects as a
-                // replay: refuse instead, with or without a counter file.
-                let next = counter
-                    .checked_add(1)
-                    .ok_or(GroundError::Counter(CounterError::Exhausted))?;
+                // After u32::MAX the station starts its next epoch at counter 1.
+                let next = counter.checked_add(1).unwrap_or(1);
                 if let Some(file) = &self.counter_file {
                     // Persist before the command can reach the radio: a crash never leads
                     // to a counter being sent twice.
@@ -620,6 +620,20 @@ impl Drop for GroundLink {
     fn drop(&mut self) {
         self.stop();
     }
+}
+
+/// A session epoch no earlier run is likely to have used: 32 bits from the standard library's
+/// randomly keyed hasher (seeded by the operating system), the time and the process ID.
+pub fn random_epoch() -> u32 {
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos()),
+    );
+    h.write_u32(std::process::id());
+    h.finish() as u32
 }
 
 /// The radio thread: read with a short timeout, feed the protocol, run its timers, write.
@@ -900,38 +914,28 @@ mod tests {
     }
 
     #[test]
-    fn the_last_counter_is_refused_instead_of_wrapping() {
-        use std::os::unix::net::UnixListener;
-        let path = std::env::temp_dir().join(format!("almc-gl-{}-wrap.sock", std::process::id()));
-        let _ = std::fs::remove_file(&path);
-        let listener = UnixListener::bind(&path).unwrap();
-        let spec = format!("unix:{}", path.display());
-        // Without a counter file: the counter after u32::MAX would be 0, a replay to every car.
-        let link = GroundLink::open(&spec, Key::new(KEY), u32::MAX).unwrap();
-        let (_peer, _) = listener.accept().unwrap();
-        let r = link.broadcast(1, &[], Duration::from_millis(200));
-        assert!(
-            matches!(r, Err(GroundError::Counter(CounterError::Exhausted))),
-            "{r:?}"
-        );
-        // A timeout beyond what `Instant` can represent is a long wait, not a panic.
-        let r = link.request(CarId::new(1).unwrap(), 1, &[], Duration::MAX);
-        assert!(
-            matches!(r, Err(GroundError::Counter(CounterError::Exhausted))),
-            "{r:?}"
-        );
-        assert_eq!(link.next_counter(), u32::MAX, "nothing was sent");
+    fn the_last_counter_leads_to_a_new_session_not_a_deaf_car() {
+        let w = world("wrap", KEY);
+        let link = open(&w, KEY, u32::MAX - 1);
+        wait_for_cars(&link, 2);
+        let car = CarId::new(1).unwrap();
+        let mut counters = Vec::new();
+        for i in 0..3u8 {
+            let r = link.request(car, 7, &[i], Duration::from_secs(5)).unwrap();
+            counters.push(r.counter);
+        }
+        // After u32::MAX the station moves to its next epoch and the car joins it.
+        assert_eq!(counters, [u32::MAX - 1, u32::MAX, 1]);
+        assert_eq!(link.next_counter(), 2);
         drop(link);
-        // One below the limit still goes out.
-        let link = GroundLink::open(&spec, Key::new(KEY), u32::MAX - 1).unwrap();
-        let (_peer, _) = listener.accept().unwrap();
-        let r = link.broadcast(1, &[], Duration::from_secs(2));
-        assert!(
-            matches!(r, Ok(BroadcastSent { counter, .. }) if counter == u32::MAX - 1),
-            "{r:?}"
-        );
-        drop(link);
-        let _ = std::fs::remove_file(&path);
+        let (reports, _) = w.stop();
+        assert_eq!(reports[0].executed.len(), 3);
+    }
+
+    #[test]
+    fn every_run_has_its_own_session_epoch() {
+        let a: std::collections::HashSet<u32> = (0..50).map(|_| random_epoch()).collect();
+        assert_eq!(a.len(), 50);
     }
 
     #[test]

@@ -382,6 +382,9 @@ pub enum Refusal {
     BadArgument = 0x08,
     /// A formation waypoint while no formation maneuver runs.
     NoFormation = 0x09,
+    /// An LBC command that reads or writes the registers the car keeps to itself (the boot
+    /// counter and the radio key, EEPROM 0x37..=0x3F).
+    Protected = 0x0A,
 }
 
 impl Refusal {
@@ -396,6 +399,7 @@ impl Refusal {
             0x07 => Refusal::NotAuthorized,
             0x08 => Refusal::BadArgument,
             0x09 => Refusal::NoFormation,
+            0x0A => Refusal::Protected,
             _ => return None,
         })
     }
@@ -1179,6 +1183,7 @@ mod tests {
                 follow_state: 1,
                 leader_bearing_mrad: -12,
                 leader_range_mm: 640,
+                frames: seq.rotate_left(7) as u16,
                 blob: (n > 0).then_some((blob, BlobReport { class: 2, area: 1234, ..BlobReport::default() })),
             });
             let len = reply.encode(&mut out).unwrap();

@@ -54,16 +54,22 @@ enum Step {
     ReadId,
     /// READ_EP of the radio key registers 0x38..=0x3F, before the radio starts.
     ReadKey,
+    /// READ_EP of the boot counter (register 0x37).
+    ReadBoot,
+    /// WRIT_EP of the incremented boot counter; once acked the radio takes the key.
+    WriteBoot,
     Rsep,
     UpdSf,
     Sten,
     Dren,
 }
 
-const STEPS: [Step; 7] = [
+const STEPS: [Step; 9] = [
     Step::Init,
     Step::ReadId,
     Step::ReadKey,
+    Step::ReadBoot,
+    Step::WriteBoot,
     Step::Rsep,
     Step::UpdSf,
     Step::Sten,
@@ -72,6 +78,21 @@ const STEPS: [Step; 7] = [
 
 /// First EEPROM register of the radio key (radio-protocol.md, key provisioning).
 const KEY_REGISTER: u8 = 0x38;
+/// EEPROM register of the boot counter: incremented at every start before the radio takes
+/// its key (the high half of the radio's Hello nonces, `radio_mac::CarConfig::boot`).
+pub const BOOT_REGISTER: u8 = 0x37;
+
+/// Whether an LBC command reads or writes the registers the program keeps to itself: the
+/// boot counter and the radio key (0x37..=0x3F). The console refuses them (`Protected`).
+#[must_use]
+pub fn touches_secrets(cmd: &Command) -> bool {
+    let reg = match cmd {
+        Command::ReadEp(a) => a.get(),
+        Command::WritEp { address, .. } => address.get(),
+        _ => return false,
+    };
+    reg >= BOOT_REGISTER
+}
 
 /// Who asked for an LBC request, so its outcome reaches the right place.
 #[derive(Debug, Clone, Copy)]
@@ -101,8 +122,9 @@ pub enum LogEvent {
     LbcLost,
     /// The LBC refused a motion command while the drive should have been enabled (it reset).
     LbcStateLost,
-    /// The radio started with this car ID.
-    RadioStarted { car_id: u8 },
+    /// The radio started with this car ID; `keyed`: with the key, after the LBC answered (a
+    /// radio without it refuses every command).
+    RadioStarted { car_id: u8, keyed: bool },
     /// The ground station was not heard in time: the car is stopped.
     UserLinkLost,
     /// The ground station is heard again.
@@ -188,6 +210,9 @@ pub struct Program {
     user_lost: bool,
     leds_sent: Option<(LedPattern, LedPattern)>,
     key_words: Vec<u16, 8>,
+    /// The radio runs with the key (and the boot counter was incremented).
+    keyed: bool,
+    boot: u16,
     owned: Vec<(Token, Owner), MAX_OWNED>,
     counters: Counters,
     lbc_tx: [u8; lbc_link::MAX_FRAME_LEN],
@@ -247,6 +272,8 @@ impl Program {
             user_lost: false,
             leds_sent: None,
             key_words: Vec::new(),
+            keyed: false,
+            boot: 0,
             owned: Vec::new(),
             counters: Counters::default(),
             lbc_tx: [0; lbc_link::MAX_FRAME_LEN],
@@ -402,7 +429,7 @@ impl Program {
             self.started_us = Some(now);
             self.retry_at_us = now;
             if let Some(id) = self.cfg.car_id {
-                self.start_radio(now, id, log);
+                self.start_radio(now, id, false, log);
             }
         }
         let mut buf = [0u8; 32];
@@ -544,8 +571,9 @@ impl Program {
                 failure,
             } => match self.take_owner(token) {
                 Some(Owner::BringUp) => {
-                    let key_step = matches!(command, Command::ReadEp(_));
-                    if (command == Command::Rsep || key_step) && failure == Failure::Rejected {
+                    // A refused READ_EP of the key is a failure like any other: without the
+                    // key the car cannot tell a provisioned EEPROM from a blank one.
+                    if command == Command::Rsep && failure == Failure::Rejected {
                         // Invalid EEPROM parameters: keep running with the LBC's own.
                         self.bringup_step_done(now, &LbcReply::Echo(command), log);
                     } else {
@@ -649,7 +677,12 @@ impl Program {
     }
 
     fn send_step<S: LogSink + ?Sized>(&mut self, now: u64, log: &mut S) {
-        if STEPS.get(self.step) == Some(&Step::ReadKey) && self.mac.is_some() {
+        while self.keyed
+            && matches!(
+                STEPS.get(self.step),
+                Some(Step::ReadKey | Step::ReadBoot | Step::WriteBoot)
+            )
+        {
             self.step += 1;
         }
         let Some(&step) = STEPS.get(self.step) else {
@@ -665,6 +698,17 @@ impl Program {
                     Err(_) => return self.bringup_failed(now, log),
                 }
             }
+            Step::ReadBoot => match lbc_link::EepromAddress::new(BOOT_REGISTER) {
+                Ok(a) => Command::ReadEp(a),
+                Err(_) => return self.bringup_failed(now, log),
+            },
+            Step::WriteBoot => match lbc_link::UserRegister::new(BOOT_REGISTER) {
+                Ok(address) => Command::WritEp {
+                    address,
+                    value: self.boot,
+                },
+                Err(_) => return self.bringup_failed(now, log),
+            },
             Step::Rsep => Command::Rsep,
             Step::UpdSf => Command::UpdSf(self.stream_format()),
             Step::Sten => Command::Sten,
@@ -679,8 +723,8 @@ impl Program {
         if self.phase != Phase::BringingUp {
             return;
         }
-        if STEPS.get(self.step) == Some(&Step::ReadKey) && self.mac.is_none() {
-            if let LbcReply::ReadEpData { value, .. } = reply {
+        match (STEPS.get(self.step), reply) {
+            (Some(Step::ReadKey), LbcReply::ReadEpData { value, .. }) => {
                 // Cannot fail: the step ends once eight words are read.
                 let _ = self.key_words.push(*value);
                 if !self.key_words.is_full() {
@@ -688,9 +732,21 @@ impl Program {
                     return;
                 }
             }
-            // All eight words read, or READ_EP refused: the configured key stands in.
-            let id = self.car_id.unwrap_or(self.cfg.fallback_car_id);
-            self.start_radio(now, id, log);
+            (Some(Step::ReadBoot), LbcReply::ReadEpData { value, .. }) => {
+                // An erased register reads 0xFFFF and starts the count at 0; the count
+                // stops below 0xFFFF, so no boot number ever comes back.
+                self.boot = value.wrapping_add(1);
+                if self.boot == u16::MAX {
+                    return self.bringup_failed(now, log);
+                }
+            }
+            (Some(Step::WriteBoot), _) => {
+                // The new boot count is in the EEPROM: the radio may take the key.
+                let id = self.car_id.unwrap_or(self.cfg.fallback_car_id);
+                self.start_radio(now, id, true, log);
+            }
+            (Some(Step::ReadKey | Step::ReadBoot), _) => return self.bringup_failed(now, log),
+            _ => {}
         }
         self.step += 1;
         if self.step < STEPS.len() {
@@ -892,7 +948,9 @@ impl Program {
         if self.mac.is_none() {
             if let Some(s) = self.started_us {
                 if now >= s + ms(self.cfg.radio_fallback_ms) {
-                    self.start_radio(now, self.cfg.fallback_car_id, log);
+                    // Without the key: the car is heard (and reports the LBC failure) but
+                    // takes no command until the LBC gave it its key.
+                    self.start_radio(now, self.cfg.fallback_car_id, false, log);
                 }
             }
         }
@@ -943,15 +1001,23 @@ impl Program {
 
     // ----- radio side -------------------------------------------------------------------
 
-    fn start_radio<S: LogSink + ?Sized>(&mut self, now: u64, id: u8, log: &mut S) {
+    fn start_radio<S: LogSink + ?Sized>(&mut self, now: u64, id: u8, keyed: bool, log: &mut S) {
         let Some(car) = CarId::new(id).or(CarId::new(self.cfg.fallback_car_id)) else {
             return;
         };
         let mut c = CarConfig::new(car);
-        c.key = Some(self.radio_key());
+        c.key = keyed.then(|| self.radio_key());
+        c.boot = u32::from(self.boot);
         c.seed = (now as u32) ^ u32::from(car.get());
         self.mac = Some(CarMac::new(c));
-        log.log(now, LogEvent::RadioStarted { car_id: car.get() });
+        self.keyed = keyed;
+        log.log(
+            now,
+            LogEvent::RadioStarted {
+                car_id: car.get(),
+                keyed,
+            },
+        );
     }
 
     /// The key provisioned in EEPROM registers 0x38..=0x3F when all eight were read and they
@@ -1040,6 +1106,9 @@ impl Program {
                 self.respond(id, Tag::Camera as u8, &Reply::Camera(report));
             }
             Request::Lbc(cmd) => {
+                if touches_secrets(&cmd) {
+                    return Some(Refusal::Protected);
+                }
                 if is_motion(&cmd) && !self.drive_enabled {
                     return Some(Refusal::DriveDisabled);
                 }

@@ -17,7 +17,9 @@ mod maneuver;
 
 pub use config::{Config, DEFAULT_KEY};
 pub use leds::LedState;
-pub use machine::{Counters, LogEvent, Phase, Program, REQUIRED_STREAM};
+pub use machine::{
+    touches_secrets, Counters, LogEvent, Phase, Program, BOOT_REGISTER, REQUIRED_STREAM,
+};
 pub use maneuver::{Maneuver, ManeuverState};
 
 /// A monotonic microsecond clock.
