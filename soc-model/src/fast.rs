@@ -1,11 +1,13 @@
 //! Decoded instructions and the core's straight-line executor.
 //!
-//! Every RAM word has a slot in `Soc::ops` holding its decoded form, packed in a `u64`:
-//! kind (bits 0-7), rd (8-15, x0 replaced by a sink register), rs1 (16-23), rs2 (24-31) and a
-//! 32-bit operand (the immediate, or an absolute target or value worked out from the word's
-//! address: AUIPC and LUI become a constant, JAL and branches carry their target). Zero means
-//! "not decoded yet", so the table starts as zeroed memory and costs nothing until used; a
-//! store into a word clears its slot.
+//! Every RAM word has a slot in `Soc::ops` holding its decoded form, packed in a `u32` laid out
+//! like the instruction where it can be: kind (bits 0-5), rd (6-10), rs1 (11-15), rs2 (16-20)
+//! and the 12-bit I-type immediate in bits 20-31 as in the instruction. Stores and branches
+//! keep rs2 in the rd field (their immediate needs bits 20-31; a branch's is its offset
+//! halved), JAL its offset halved in bits 12-31, LUI and AUIPC the upper immediate as in the
+//! instruction. Writes to x0 are decoded away (a no-op, a jump without link, or the general
+//! path for a load or a division). Zero means "not decoded yet", so the table starts as zeroed
+//! memory and costs nothing until used; a store into a word clears its slot.
 //!
 //! The executor runs decoded instructions that take a fixed number of cycles and touch only
 //! registers and RAM, up to a deadline (the next cycle at which a device may change, a counter
@@ -15,80 +17,78 @@
 
 use crate::exec::divide;
 use crate::hart::Retire;
-use crate::{Retired, Soc, RAM_BASE, RAM_SIZE, RAM_WORDS, X_SINK};
+use crate::{Retired, Soc, RAM_BASE, RAM_SIZE, RAM_WORDS};
 
 pub(crate) mod k {
-    pub const SLOW: u8 = 1;
-    pub const LI: u8 = 2;
-    pub const ADDI: u8 = 3;
-    pub const SLTI: u8 = 4;
-    pub const SLTIU: u8 = 5;
-    pub const XORI: u8 = 6;
-    pub const ORI: u8 = 7;
-    pub const ANDI: u8 = 8;
-    pub const SLLI: u8 = 9;
-    pub const SRLI: u8 = 10;
-    pub const SRAI: u8 = 11;
-    pub const ADD: u8 = 12;
-    pub const SUB: u8 = 13;
-    pub const SLL: u8 = 14;
-    pub const SLT: u8 = 15;
-    pub const SLTU: u8 = 16;
-    pub const XOR: u8 = 17;
-    pub const SRL: u8 = 18;
-    pub const SRA: u8 = 19;
-    pub const OR: u8 = 20;
-    pub const AND: u8 = 21;
-    pub const MUL: u8 = 22;
-    pub const MULH: u8 = 23;
-    pub const MULHSU: u8 = 24;
-    pub const MULHU: u8 = 25;
-    pub const DIV: u8 = 26;
-    pub const DIVU: u8 = 27;
-    pub const REM: u8 = 28;
-    pub const REMU: u8 = 29;
-    pub const JAL: u8 = 30;
-    pub const JALR: u8 = 31;
-    pub const BEQ: u8 = 32;
-    pub const BNE: u8 = 33;
-    pub const BLT: u8 = 34;
-    pub const BGE: u8 = 35;
-    pub const BLTU: u8 = 36;
-    pub const BGEU: u8 = 37;
-    pub const LB: u8 = 38;
-    pub const LH: u8 = 39;
-    pub const LW: u8 = 40;
-    pub const LBU: u8 = 41;
-    pub const LHU: u8 = 42;
-    pub const SB: u8 = 43;
-    pub const SH: u8 = 44;
-    pub const SW: u8 = 45;
-    pub const NOP: u8 = 46;
+    pub const SLOW: u32 = 1;
+    pub const LUI: u32 = 2;
+    pub const AUIPC: u32 = 3;
+    pub const ADDI: u32 = 4;
+    pub const SLTI: u32 = 5;
+    pub const SLTIU: u32 = 6;
+    pub const XORI: u32 = 7;
+    pub const ORI: u32 = 8;
+    pub const ANDI: u32 = 9;
+    pub const SLLI: u32 = 10;
+    pub const SRLI: u32 = 11;
+    pub const SRAI: u32 = 12;
+    pub const ADD: u32 = 13;
+    pub const SUB: u32 = 14;
+    pub const SLL: u32 = 15;
+    pub const SLT: u32 = 16;
+    pub const SLTU: u32 = 17;
+    pub const XOR: u32 = 18;
+    pub const SRL: u32 = 19;
+    pub const SRA: u32 = 20;
+    pub const OR: u32 = 21;
+    pub const AND: u32 = 22;
+    pub const MUL: u32 = 23;
+    pub const MULH: u32 = 24;
+    pub const MULHSU: u32 = 25;
+    pub const MULHU: u32 = 26;
+    pub const DIV: u32 = 27;
+    pub const DIVU: u32 = 28;
+    pub const REM: u32 = 29;
+    pub const REMU: u32 = 30;
+    pub const JAL: u32 = 31;
+    pub const J: u32 = 32;
+    pub const JALR: u32 = 33;
+    pub const JR: u32 = 34;
+    pub const BEQ: u32 = 35;
+    pub const BNE: u32 = 36;
+    pub const BLT: u32 = 37;
+    pub const BGE: u32 = 38;
+    pub const BLTU: u32 = 39;
+    pub const BGEU: u32 = 40;
+    pub const LB: u32 = 41;
+    pub const LH: u32 = 42;
+    pub const LW: u32 = 43;
+    pub const LBU: u32 = 44;
+    pub const LHU: u32 = 45;
+    pub const SB: u32 = 46;
+    pub const SH: u32 = 47;
+    pub const SW: u32 = 48;
+    pub const NOP: u32 = 49;
 }
 
-fn pack(kind: u8, rd: u32, rs1: u32, rs2: u32, imm: u32) -> u64 {
-    let rd = if rd == 0 { X_SINK as u32 } else { rd };
-    u64::from(kind)
-        | u64::from(rd) << 8
-        | u64::from(rs1) << 16
-        | u64::from(rs2) << 24
-        | u64::from(imm) << 32
-}
+const SLOW: u32 = k::SLOW;
 
 /// Decodes the word `insn` found at `pc`.
-pub(crate) fn decode(insn: u32, pc: u32) -> u64 {
+pub(crate) fn decode(insn: u32, pc: u32) -> u32 {
     let opcode = insn & 0x7f;
     let rd = (insn >> 7) & 31;
     let f3 = (insn >> 12) & 7;
     let rs1 = (insn >> 15) & 31;
     let rs2 = (insn >> 20) & 31;
     let f7 = insn >> 25;
-    let imm_i = (insn as i32 >> 20) as u32;
-    let imm_s = (((insn as i32) >> 25) << 5) as u32 | ((insn >> 7) & 0x1f);
-    let slow = u64::from(k::SLOW);
+    let hi12 = insn & 0xfff0_0000;
+    // kind, rd, rs1, rs2 and the I-type immediate where the instruction has it
+    let i_type = |kind: u32| kind | rd << 6 | rs1 << 11 | hi12;
     match opcode {
-        0b011_0111 => pack(k::LI, rd, 0, 0, insn & 0xffff_f000),
-        0b001_0111 => pack(k::LI, rd, 0, 0, pc.wrapping_add(insn & 0xffff_f000)),
+        0b011_0111 if rd == 0 => k::NOP,
+        0b001_0111 if rd == 0 => k::NOP,
+        0b011_0111 => k::LUI | rd << 6 | (insn & 0xffff_f000),
+        0b001_0111 => k::AUIPC | rd << 6 | (insn & 0xffff_f000),
         0b110_1111 => {
             let imm_j = ((((insn as i32) >> 31) << 20) as u32)
                 | (insn & 0x000f_f000)
@@ -96,12 +96,12 @@ pub(crate) fn decode(insn: u32, pc: u32) -> u64 {
                 | (((insn >> 21) & 0x3ff) << 1);
             let t = pc.wrapping_add(imm_j);
             if t & 3 != 0 || t == pc {
-                slow
-            } else {
-                pack(k::JAL, rd, 0, 0, t)
+                return SLOW;
             }
+            let kind = if rd == 0 { k::J } else { k::JAL };
+            kind | rd << 6 | (imm_j >> 1) << 12
         }
-        0b110_0111 if f3 == 0 => pack(k::JALR, rd, rs1, 0, imm_i),
+        0b110_0111 if f3 == 0 => i_type(if rd == 0 { k::JR } else { k::JALR }),
         0b110_0011 if f3 != 2 && f3 != 3 => {
             let imm_b = ((((insn as i32) >> 31) << 12) as u32)
                 | (((insn >> 7) & 1) << 11)
@@ -109,7 +109,7 @@ pub(crate) fn decode(insn: u32, pc: u32) -> u64 {
                 | (((insn >> 8) & 0xf) << 1);
             let t = pc.wrapping_add(imm_b);
             if t & 3 != 0 || t == pc {
-                return slow;
+                return SLOW;
             }
             let kind = match f3 {
                 0 => k::BEQ,
@@ -119,27 +119,30 @@ pub(crate) fn decode(insn: u32, pc: u32) -> u64 {
                 6 => k::BLTU,
                 _ => k::BGEU,
             };
-            pack(kind, 0, rs1, rs2, t)
+            // rs2 in the rd field: the offset needs bits 20-31
+            kind | rs2 << 6 | rs1 << 11 | (imm_b >> 1) << 20
         }
         0b000_0011 => {
             let kind = match f3 {
+                _ if rd == 0 => return SLOW,
                 0 => k::LB,
                 1 => k::LH,
                 2 => k::LW,
                 4 => k::LBU,
                 5 => k::LHU,
-                _ => return slow,
+                _ => return SLOW,
             };
-            pack(kind, rd, rs1, 0, imm_i)
+            i_type(kind)
         }
         0b010_0011 => {
             let kind = match f3 {
                 0 => k::SB,
                 1 => k::SH,
                 2 => k::SW,
-                _ => return slow,
+                _ => return SLOW,
             };
-            pack(kind, 0, rs1, rs2, imm_s)
+            let imm_s = (f7 << 5) | rd;
+            kind | rs2 << 6 | rs1 << 11 | imm_s << 20
         }
         0b001_0011 => {
             let kind = match f3 {
@@ -152,14 +155,13 @@ pub(crate) fn decode(insn: u32, pc: u32) -> u64 {
                 5 if f7 == 0x20 => k::SRAI,
                 6 => k::ORI,
                 7 => k::ANDI,
-                _ => return slow,
+                _ => return SLOW,
             };
-            let imm = if matches!(kind, k::SLLI | k::SRLI | k::SRAI) {
-                imm_i & 31
+            if rd == 0 {
+                k::NOP
             } else {
-                imm_i
-            };
-            pack(kind, rd, rs1, 0, imm)
+                i_type(kind)
+            }
         }
         0b011_0011 => {
             let kind = match (f7, f3) {
@@ -181,12 +183,21 @@ pub(crate) fn decode(insn: u32, pc: u32) -> u64 {
                 (1, 5) => k::DIVU,
                 (1, 6) => k::REM,
                 (1, 7) => k::REMU,
-                _ => return slow,
+                _ => return SLOW,
             };
-            pack(kind, rd, rs1, rs2, 0)
+            if rd == 0 {
+                // a division still takes its 34 cycles
+                if kind >= k::DIV {
+                    SLOW
+                } else {
+                    k::NOP
+                }
+            } else {
+                kind | rd << 6 | rs1 << 11 | rs2 << 16
+            }
         }
-        0b000_1111 if f3 == 0 => pack(k::NOP, 0, 0, 0, 0),
-        _ => slow,
+        0b000_1111 if f3 == 0 => k::NOP,
+        _ => SLOW,
     }
 }
 
@@ -272,7 +283,7 @@ impl Soc {
             ..
         } = self;
         let (Ok(ops), Ok(ram)) = (
-            <&mut [u64; RAM_WORDS]>::try_from(&mut ops[..]),
+            <&mut [u32; RAM_WORDS]>::try_from(&mut ops[..]),
             <&mut [u32; RAM_WORDS]>::try_from(&mut ram[..]),
         ) else {
             return Burst::Slow;
@@ -294,10 +305,11 @@ impl Soc {
             } else {
                 op0
             };
-            let rd = ((op >> 8) & 63) as usize;
-            let rs1 = ((op >> 16) & 63) as usize;
-            let rs2 = ((op >> 24) & 63) as usize;
-            let imm = (op >> 32) as u32;
+            let kind = op & 63;
+            let rd = ((op >> 6) & 31) as usize;
+            let rs1 = ((op >> 11) & 31) as usize;
+            let rs2 = ((op >> 16) & 31) as usize;
+            let imm = ((op as i32) >> 20) as u32;
             let a = x[rs1];
             let b = x[rs2];
             let mut next = pc.wrapping_add(4);
@@ -327,13 +339,14 @@ impl Soc {
             }
             // a store of `lanes` (size mask `sm`) with the bus data `data`
             macro_rules! store {
-                ($sm:expr, $lanes:expr, $data:expr) => {{
+                ($sm:expr, $lanes:expr, $v:ident => $data:expr) => {{
                     let addr = a.wrapping_add(imm);
                     let off = addr.wrapping_sub(RAM_BASE);
                     let sm: u32 = $sm;
                     if addr & sm != 0 || off >= RAM_SIZE {
                         break Burst::Slow;
                     }
+                    let $v = x[rd];
                     let data: u32 = $data;
                     let lanes: u8 = $lanes;
                     let i = (off >> 2) as usize & (RAM_WORDS - 1);
@@ -361,8 +374,9 @@ impl Soc {
                     }
                 }};
             }
-            match op as u8 {
-                k::LI => x[rd] = imm,
+            match kind {
+                k::LUI => x[rd] = op & 0xffff_f000,
+                k::AUIPC => x[rd] = pc.wrapping_add(op & 0xffff_f000),
                 k::ADDI => x[rd] = a.wrapping_add(imm),
                 k::SLTI => x[rd] = u32::from((a as i32) < (imm as i32)),
                 k::SLTIU => x[rd] = u32::from(a < imm),
@@ -389,49 +403,53 @@ impl Soc {
                 k::MULHSU => x[rd] = ((i64::from(a as i32) * i64::from(b)) >> 32) as u32,
                 k::MULHU => x[rd] = ((u64::from(a) * u64::from(b)) >> 32) as u32,
                 k::DIV | k::DIVU | k::REM | k::REMU => {
-                    x[rd] = divide(u32::from(op as u8 - k::DIV) + 4, a, b);
+                    x[rd] = divide(kind - k::DIV + 4, a, b);
                     cycles = 34;
                 }
                 k::JAL => {
                     x[rd] = next;
-                    next = imm;
+                    next = pc.wrapping_add((((op as i32) >> 12) << 1) as u32);
                 }
-                k::JALR => {
+                k::J => next = pc.wrapping_add((((op as i32) >> 12) << 1) as u32),
+                k::JALR | k::JR => {
                     let t = a.wrapping_add(imm) & !1;
                     if t & 2 != 0 {
+                        // misaligned target: the general path raises the exception
                         break Burst::Slow;
                     }
-                    x[rd] = next;
+                    if kind == k::JALR {
+                        x[rd] = next;
+                    }
                     next = t;
                 }
                 k::BEQ => {
-                    if a == b {
-                        next = imm;
+                    if a == x[rd] {
+                        next = pc.wrapping_add(imm << 1);
                     }
                 }
                 k::BNE => {
-                    if a != b {
-                        next = imm;
+                    if a != x[rd] {
+                        next = pc.wrapping_add(imm << 1);
                     }
                 }
                 k::BLT => {
-                    if (a as i32) < (b as i32) {
-                        next = imm;
+                    if (a as i32) < (x[rd] as i32) {
+                        next = pc.wrapping_add(imm << 1);
                     }
                 }
                 k::BGE => {
-                    if (a as i32) >= (b as i32) {
-                        next = imm;
+                    if (a as i32) >= (x[rd] as i32) {
+                        next = pc.wrapping_add(imm << 1);
                     }
                 }
                 k::BLTU => {
-                    if a < b {
-                        next = imm;
+                    if a < x[rd] {
+                        next = pc.wrapping_add(imm << 1);
                     }
                 }
                 k::BGEU => {
-                    if a >= b {
-                        next = imm;
+                    if a >= x[rd] {
+                        next = pc.wrapping_add(imm << 1);
                     }
                 }
                 k::LB => load!(0, 0x1, v, _w => v as u8 as i8 as i32 as u32),
@@ -439,15 +457,15 @@ impl Soc {
                 k::LW => load!(3, 0xf, _v, w => w),
                 k::LBU => load!(0, 0x1, v, _w => v & 0xff),
                 k::LHU => load!(1, 0x3, v, _w => v & 0xffff),
-                k::SB => store!(0, 0x1, (b & 0xff) * 0x0101_0101),
-                k::SH => store!(1, 0x3, (b & 0xffff) * 0x0001_0001),
-                k::SW => store!(3, 0xf, b),
+                k::SB => store!(0, 0x1, v => (v & 0xff) * 0x0101_0101),
+                k::SH => store!(1, 0x3, v => (v & 0xffff) * 0x0001_0001),
+                k::SW => store!(3, 0xf, v => v),
                 k::NOP => {}
                 _ => break Burst::Slow,
             }
             if TRACE {
                 let writes_rd = !matches!(
-                    op as u8,
+                    kind,
                     k::BEQ
                         | k::BNE
                         | k::BLT

@@ -226,8 +226,6 @@ pub(crate) mod pend {
 
 pub(crate) const RAM_WORDS: usize = (RAM_SIZE / 4) as usize;
 pub(crate) const FRAME_WORDS: usize = FRAME_WINDOW_LEN / 4;
-/// Register index that absorbs writes to x0 (decoded instructions write it instead).
-pub(crate) const X_SINK: usize = 32;
 
 /// The second cycle of an AMO whose target is not RAM, when its first cycle was the last one
 /// of a run (it then runs at the start of the next, after the harness's input).
@@ -246,7 +244,7 @@ pub(crate) struct AmoEx2 {
 #[derive(Clone)]
 pub struct Soc {
     // ---- core
-    /// x0..x31, then [`X_SINK`]; the rest pads the array so indices need no bounds check.
+    /// x0..x31 (x0 is never written); the rest pads the array.
     pub(crate) x: [u32; 64],
     pub(crate) pc: u32,
     pub(crate) mstatus_mie: bool,
@@ -288,7 +286,7 @@ pub struct Soc {
     // ---- memories
     pub(crate) ram: Vec<u32>,
     /// Decoded instructions by RAM word (0: not decoded); see `fast`.
-    pub(crate) ops: Vec<u64>,
+    pub(crate) ops: Vec<u32>,
     pub(crate) frame: Vec<u32>,
 
     // ---- devices
