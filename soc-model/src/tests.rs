@@ -790,3 +790,35 @@ fn soc_is_send_clone_and_a_clone_runs_the_same() {
     assert_eq!(a.halted(), b.halted());
     assert!(format!("{a:?}").contains("Soc"));
 }
+
+/// AMOs and LR/SC on device registers (a UART's scratch register, the PLIC threshold and
+/// claim), the same whether a run boundary falls between an AMO's two cycles or not.
+#[test]
+fn amos_on_devices_across_run_boundaries() {
+    let mut p = P::default();
+    p.li(T1, map::UART0 + 4)
+        .li(T0, 0x5a00_0000)
+        .li(A3, map::PLIC + 0x20_0000);
+    p.li(S1, 3).i(isa::sw(S1, A3, 0));
+    for _ in 0..5 {
+        p.i(isa::amo_w(isa::amo::OR, A0, T1, T0));
+        p.i(isa::amo_w(isa::amo::ADD, A1, A3, S1));
+        p.i(isa::lr_w(A2, T1)).i(isa::sc_w(A2, T1, T0));
+        p.i(isa::amo_w(isa::amo::SWAP, A2, A3, 0));
+    }
+    p.exit_pass();
+    let run = |slice: u64| {
+        let mut s = p.soc();
+        let (mut out, mut trace) = (Vec::new(), Vec::new());
+        while s.halted().is_none() && s.cycle() < 10_000 {
+            let c = s.cycle();
+            s.run_until_traced(c + slice, &mut out, &mut trace);
+        }
+        (trace, s.stats(), s.reg(10), s.reg(11))
+    };
+    let whole = run(100_000);
+    assert_eq!(whole.2 >> 24, 0x5a, "SCR keeps the OR");
+    for slice in [1, 2, 3] {
+        assert_eq!(run(slice), whole, "slices of {slice}");
+    }
+}
