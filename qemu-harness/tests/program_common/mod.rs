@@ -39,15 +39,19 @@ pub struct LbcServer {
 impl LbcServer {
     /// Binds `path` and runs a freshly powered-up LBC behind it.
     pub fn start(path: &Path) -> Self {
+        let mut cfg = LbcConfig::default();
+        cfg.log = true;
+        Self::start_with(path, Lbc::with_memory_eeprom(cfg, CAR))
+    }
+
+    /// Binds `path` and runs `lbc` behind it (its log should be enabled).
+    pub fn start_with(path: &Path, mut lbc: Lbc) -> Self {
         let server = Server::bind(&ListenAddr::Unix(path.to_path_buf()))
             .unwrap_or_else(|e| panic!("cannot bind the LBC socket {}: {e}", path.display()));
         let stop = Arc::new(AtomicBool::new(false));
         let log = Arc::new(Mutex::new(Vec::new()));
         let (s, l) = (Arc::clone(&stop), Arc::clone(&log));
         let thread = thread::spawn(move || {
-            let mut cfg = LbcConfig::default();
-            cfg.log = true;
-            let mut lbc = Lbc::with_memory_eeprom(cfg, CAR);
             let _ = server.run(
                 &mut lbc,
                 &s,
@@ -220,17 +224,43 @@ pub struct Ground {
     start: Instant,
     /// Notices the car sent.
     pub notices: Vec<Notice>,
+    /// The car requests go to.
+    pub car: u8,
+    /// Every byte the ground station sent (what a listener on the channel records).
+    pub tape: Vec<u8>,
 }
 
 impl Ground {
     /// A ground station with the testbed default key.
     pub fn new(uart: Uart) -> Self {
+        Self::with_key(uart, DEFAULT_KEY)
+    }
+
+    /// A ground station with `key`.
+    pub fn with_key(uart: Uart, key: [u8; 16]) -> Self {
         Self {
             uart,
-            gs: GroundStation::new(GroundConfig::new(Key::new(DEFAULT_KEY), 1)),
+            gs: GroundStation::new(GroundConfig::new(Key::new(key), 1)),
             start: Instant::now(),
             notices: Vec::new(),
+            car: CAR,
+            tape: Vec::new(),
         }
+    }
+
+    /// The radio UART, to go on with another station.
+    pub fn into_uart(self) -> Uart {
+        self.uart
+    }
+
+    /// Goes on with the radio UART of a restarted firmware (same station, same session).
+    pub fn reattach(&mut self, uart: Uart) {
+        self.uart = uart;
+    }
+
+    /// The radio-mac station's counters.
+    pub fn stats(&self) -> radio_mac::Stats {
+        *self.gs.stats()
     }
 
     fn now(&self) -> u64 {
@@ -270,6 +300,7 @@ impl Ground {
             if n == 0 {
                 break;
             }
+            self.tape.extend_from_slice(&buf[..n]);
             self.uart.write_all(&buf[..n]).expect("radio write");
         }
         events
@@ -294,7 +325,7 @@ impl Ground {
         let mut buf = [0u8; 32];
         let n = req.encode(&mut buf).expect("encode");
         let tag = req.tag() as u8;
-        let dst = Address::Car(CarId::new(CAR).expect("car id"));
+        let dst = Address::Car(CarId::new(self.car).expect("car id"));
         let end = Instant::now() + timeout;
         let h = loop {
             let now = self.now();
