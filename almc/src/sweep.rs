@@ -175,11 +175,13 @@ fn run_cmd(args: &RunArgs) -> anyhow::Result<ExitCode> {
         eprintln!("warning: Ctrl-C will not stop the sweep cleanly: {e}");
     }
     let mut progress = Progress::new();
+    let started = std::time::Instant::now();
     let report = sweep::run_sweep(&sweep, &out, &opts, &mut |ev| progress.event(ev), &cancel);
+    let wall = started.elapsed().as_secs_f64();
     progress.finish();
     let report = report?;
     println!(
-        "sweep {}{}: {} runs: {} complete, {} failed, {} still to do ({} kept from an earlier run, {} run now)",
+        "sweep {}{}: {} runs: {} complete, {} failed, {} still to do ({} kept from an earlier run, {} run now){}",
         sweep.plan.name,
         if shard == Shard::ALL {
             String::new()
@@ -192,6 +194,16 @@ fn run_cmd(args: &RunArgs) -> anyhow::Result<ExitCode> {
         report.unfinished(),
         report.skipped,
         report.ran,
+        if report.ran > 0 {
+            format!(
+                "; {:.1} s on {} workers, {:.0} runs per hour",
+                wall,
+                opts.workers.min(report.ran),
+                report.ran as f64 * 3600.0 / wall.max(1e-9)
+            )
+        } else {
+            String::new()
+        },
     );
     print_outputs(&sweep.plan, &report.outputs);
     if report.stopped {

@@ -117,7 +117,7 @@ pub fn write_plots(dir: &Path, plan: &Plan, rows: &[RunRow]) -> Result<Vec<PathB
         let png = dir.join(format!("{stem}.png"));
         let axes = Axes {
             title: format!(
-                "{}: {metric}, mean and 95 % interval of {} seeds",
+                "{}: mean and 95 % interval of {} seeds",
                 plan.name,
                 plan.seeds.len()
             ),
@@ -180,7 +180,12 @@ fn draw<B: DrawingBackend>(backend: B, axes: &Axes<'_>, series: &[Series]) -> Re
             m.map(|m| [m - h, m + h]).into_iter().flatten()
         })
     });
-    let (y0, y1) = range(ys);
+    let (y0, mut y1) = range(ys);
+    let legend = series.iter().any(|s| !s.label.is_empty());
+    if legend {
+        // Room for the legend above the data.
+        y1 += (y1 - y0) * 0.18;
+    }
     let mut chart = ChartBuilder::on(&root)
         .caption(&axes.title, ("sans-serif", 22))
         .margin(16)
@@ -243,7 +248,7 @@ fn draw<B: DrawingBackend>(backend: B, axes: &Axes<'_>, series: &[Series]) -> Re
         });
         chart.draw_series(bars).map_err(|e| err(&e))?;
     }
-    if series.iter().any(|s| !s.label.is_empty()) {
+    if legend {
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)

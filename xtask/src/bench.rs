@@ -16,6 +16,8 @@
 //! - `arena`: world seconds per wall second of N cars on the soft core's model in virtual time,
 //!   each car's state broadcasts delivered against the radio model's figure, and QEMU cars in
 //!   real time (`arena/tests/arena_bench.rs`).
+//! - `sweep`: runs per hour of `almc sweep run` (release, every core) on the four-car
+//!   formation sweep `experiments/sweeps/formation-wedge-loss.toml`, from scratch.
 //!
 //! `--only NAME` runs one of them; `--out FILE` also writes the markdown to a file.
 
@@ -78,10 +80,12 @@ pub enum Bench {
     Arena,
     /// Soft core: CPI on the firmware, simulation speed, LUT4 from yosys.
     Softcore,
+    /// Parameter sweeps: runs per hour of a four-car formation sweep.
+    Sweep,
 }
 
 impl Bench {
-    const ALL: [Bench; 8] = [
+    const ALL: [Bench; 9] = [
         Bench::Size,
         Bench::FwDecode,
         Bench::HostDecode,
@@ -90,6 +94,7 @@ impl Bench {
         Bench::FwVision,
         Bench::Arena,
         Bench::Softcore,
+        Bench::Sweep,
     ];
 
     fn title(self) -> &'static str {
@@ -102,6 +107,7 @@ impl Bench {
             Bench::FwVision => "vision on the firmware (instructions per pixel)",
             Bench::Arena => "the arena: virtual-time speed, state delivery, QEMU cars",
             Bench::Softcore => "soft core",
+            Bench::Sweep => "sweeps",
         }
     }
 }
@@ -125,6 +131,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             Bench::FwVision => fw_vision(),
             Bench::Arena => arena(),
             Bench::Softcore => softcore(),
+            Bench::Sweep => sweep(),
         };
         match section {
             Ok(text) => {
@@ -876,6 +883,93 @@ fn markdown_part(text: &str) -> &str {
         offset += line.len();
     }
     ""
+}
+
+/// The sweep the `sweep` benchmark runs.
+const SWEEP_BENCH_FILE: &str = "experiments/sweeps/formation-wedge-loss.toml";
+
+/// Runs the four-car formation sweep from scratch with `almc sweep run` (release build, one
+/// worker per core) and reports its runs per hour, from the sweep's own summary line and the
+/// runs' `run.json` (wall and world time of each).
+fn sweep() -> Result<String> {
+    let elf = crate::fw::build("softcore", true)?;
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    run_captured(
+        Command::new(&cargo).args(["build", "-q", "--release", "-p", "almc"]),
+        "cargo build --release -p almc",
+        false,
+    )?;
+    let out = std::env::temp_dir().join(format!("almc-bench-sweep-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let text = run_captured(
+        Command::new(&cargo)
+            .args(["run", "-q", "--release", "-p", "almc", "--", "sweep", "run"])
+            .arg(SWEEP_BENCH_FILE)
+            .arg("--out")
+            .arg(&out)
+            .arg("--firmware")
+            .arg(&elf),
+        "almc sweep run",
+        true,
+    );
+    let runs: Vec<serde_json::Value> = std::fs::read_dir(out.join("runs"))
+        .map(|rd| {
+            rd.filter_map(|e| e.ok())
+                .filter_map(|e| std::fs::read_to_string(e.path().join("run.json")).ok())
+                .filter_map(|t| serde_json::from_str(&t).ok())
+                .collect()
+        })
+        .unwrap_or_default();
+    let _ = std::fs::remove_dir_all(&out);
+    let text = text?;
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("sweep ") && l.contains("runs per hour"))
+        .context("almc sweep run printed no summary line")?;
+    // "sweep NAME: N runs: C complete, F failed, ...; W s on K workers, R runs per hour"
+    let number_before = |word: &str| -> Result<f64> {
+        let at = line
+            .find(word)
+            .with_context(|| format!("no `{word}` in `{line}`"))?;
+        line[..at]
+            .split_whitespace()
+            .last()
+            .and_then(|n| n.trim_start_matches('(').parse().ok())
+            .with_context(|| format!("no number before `{word}` in `{line}`"))
+    };
+    let total = number_before(" runs:")?;
+    let complete = number_before(" complete")?;
+    let wall = number_before(" s on ")?;
+    let workers = number_before(" workers")?;
+    let per_hour = number_before(" runs per hour")?;
+    let sum = |k: &str| -> f64 { runs.iter().filter_map(|r| r[k].as_f64()).sum() };
+    let (run_wall, run_world) = (sum("wall_s"), sum("world_s"));
+    let n = runs.len().max(1) as f64;
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    let mut md = String::from("## Sweeps\n\n");
+    let _ = writeln!(
+        md,
+        "`{SWEEP_BENCH_FILE}`: the four-car wedge of `formation-wedge-four.toml`, 5 radio losses \
+         x 2 slot spacings x 4 seeds, every run from scratch (release build, {cores} cores).\n"
+    );
+    let _ = writeln!(
+        md,
+        "| runs | complete | workers | wall time | runs per hour | mean run: wall | mean run: world time | world s per wall s per worker |"
+    );
+    let _ = writeln!(md, "|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(
+        md,
+        "| {total:.0} | {complete:.0} | {workers:.0} | {wall:.0} s | **{per_hour:.0}** | {:.1} s | {:.1} s | {:.2} |",
+        run_wall / n,
+        run_world / n,
+        run_world / run_wall.max(1e-9),
+    );
+    let _ = write!(
+        md,
+        "\nReproduce: `cargo run --release -p almc -- sweep run {SWEEP_BENCH_FILE} --out DIR` \
+         (a new DIR: finished runs are kept) or `cargo xtask bench --only sweep`."
+    );
+    Ok(md)
 }
 
 #[cfg(test)]
