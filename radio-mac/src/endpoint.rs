@@ -1082,7 +1082,8 @@ impl<const N: usize> Endpoint<N> {
         let (Frame::Hello { src, nonce, .. }, Some(key)) = (&frame, self.key.as_ref()) else {
             return;
         };
-        if self.own != Address::Ground {
+        // `N` tells the roles apart at compile time: a car's firmware carries no station code.
+        if N != crate::GROUND_CARS || self.own != Address::Ground {
             return;
         }
         if !auth::verify(key, 0, &frame) {
@@ -1290,7 +1291,8 @@ impl<const N: usize> Endpoint<N> {
         }
         self.heartbeat_aligned = false;
         self.next_heartbeat = Some(now + self.heartbeat_us);
-        let frame = if self.own == Address::Ground {
+        let ground = N == crate::GROUND_CARS && self.own == Address::Ground;
+        let frame = if ground {
             // The ground station's heartbeat is authenticated and counted; the counter's
             // last value starts the next epoch.
             let Some(key) = self.key.clone() else {
@@ -1318,7 +1320,7 @@ impl<const N: usize> Endpoint<N> {
         };
         if self.queue_frame(&frame).is_ok() {
             self.stats.heartbeats_sent += 1;
-            if self.own == Address::Ground {
+            if ground {
                 match self.next_beat.checked_add(1) {
                     Some(b) => self.next_beat = b,
                     None => self.next_epoch(),
