@@ -69,9 +69,12 @@ impl fmt::Display for PathProblem {
                 write!(f, "the base experiment has no `{at}` to index")
             }
             PathProblem::WrongType { expected, found } => {
+                let a = |t: &str| if t.starts_with(['a', 'i']) { "an" } else { "a" };
                 write!(
                     f,
-                    "the base experiment has a {expected} there, not a {found}"
+                    "the base experiment has {} {expected} there, not {} {found}",
+                    a(expected),
+                    a(found)
                 )
             }
             PathProblem::CarsNotACount => f.write_str("`cars` must be a whole number of cars >= 1"),

@@ -26,14 +26,14 @@ pub fn merge(shares: &[PathBuf], into: &Path) -> Result<MergeReport, SweepError>
     };
     let plan = Plan::read(first)?;
     for other in &shares[1..] {
-        if Plan::read(other)? != plan {
+        if !Plan::read(other)?.same_sweep(&plan) {
             return Err(SweepError::PlanMismatch {
                 first: first.clone(),
                 other: other.clone(),
             });
         }
     }
-    if into.join("plan.json").is_file() && Plan::read(into)? != plan {
+    if into.join("plan.json").is_file() && !Plan::read(into)?.same_sweep(&plan) {
         return Err(SweepError::PlanMismatch {
             first: first.clone(),
             other: into.into(),

@@ -131,6 +131,15 @@ impl Plan {
         self.points[i].iter().map(path::display).collect()
     }
 
+    /// The same runs and outputs as `other`: everything but where the base experiment was
+    /// read from (shares started from different directories name it differently).
+    pub fn same_sweep(&self, other: &Plan) -> bool {
+        Plan {
+            base: other.base.clone(),
+            ..self.clone()
+        } == *other
+    }
+
     /// Writes `plan.json` in `dir`.
     pub fn write(&self, dir: &Path) -> Result<(), SweepError> {
         let path = dir.join("plan.json");
@@ -239,6 +248,21 @@ mod tests {
         assert!(Shard::parse("0/0").is_err());
         assert!(Shard::parse("x").is_err());
         assert_eq!(p.x_index(), 1);
+    }
+
+    #[test]
+    fn shares_from_other_directories_are_the_same_sweep() {
+        let p = plan();
+        let moved = Plan {
+            base: "/elsewhere/b.toml".into(),
+            ..p.clone()
+        };
+        assert!(p.same_sweep(&moved));
+        let more_seeds = Plan {
+            seeds: vec![1, 2, 3, 4],
+            ..p.clone()
+        };
+        assert!(!p.same_sweep(&more_seeds));
     }
 
     #[test]
