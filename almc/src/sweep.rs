@@ -10,6 +10,22 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use clap::{Args, Subcommand};
+
+/// `println!` that ignores a closed standard output (`almc sweep run ... | head`).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
+/// `eprintln!` that ignores a closed standard error.
+macro_rules! esay {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
 use indicatif::{ProgressBar, ProgressStyle};
 use sweep::{Event, Options, Outputs, RunState, Shard, Sweep};
 
@@ -100,7 +116,7 @@ pub fn run(cmd: SweepCommand) -> ExitCode {
         SweepCommand::Slurm(args) => slurm_cmd(&args),
     };
     result.unwrap_or_else(|e| {
-        eprintln!("error: {e:#}");
+        esay!("error: {e:#}");
         ExitCode::FAILURE
     })
 }
@@ -124,7 +140,7 @@ fn firmware(given: &Option<PathBuf>, sweep: &Sweep) -> anyhow::Result<PathBuf> {
 fn check_cmd(file: &Path) -> anyhow::Result<ExitCode> {
     let s = load(file)?;
     let p = &s.plan;
-    println!(
+    say!(
         "{}: {} points x {} seeds = {} runs of {}; metrics {}; plots against {}: ok",
         p.name,
         p.points.len(),
@@ -141,7 +157,7 @@ fn check_cmd(file: &Path) -> anyhow::Result<ExitCode> {
             .zip(p.point_labels(i))
             .map(|(n, v)| format!("{n} = {v}"))
             .collect();
-        println!("  point {i}: {}", values.join(", "));
+        say!("  point {i}: {}", values.join(", "));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -172,7 +188,7 @@ fn run_cmd(args: &RunArgs) -> anyhow::Result<ExitCode> {
             std::process::exit(130);
         }
     }) {
-        eprintln!("warning: Ctrl-C will not stop the sweep cleanly: {e}");
+        esay!("warning: Ctrl-C will not stop the sweep cleanly: {e}");
     }
     let mut progress = Progress::new();
     let started = std::time::Instant::now();
@@ -180,7 +196,7 @@ fn run_cmd(args: &RunArgs) -> anyhow::Result<ExitCode> {
     let wall = started.elapsed().as_secs_f64();
     progress.finish();
     let report = report?;
-    println!(
+    say!(
         "sweep {}{}: {} runs: {} complete, {} failed, {} still to do ({} kept from an earlier run, {} run now){}",
         sweep.plan.name,
         if shard == Shard::ALL {
@@ -198,7 +214,7 @@ fn run_cmd(args: &RunArgs) -> anyhow::Result<ExitCode> {
             format!(
                 "; {:.1} s on {} workers, {:.0} runs per hour",
                 wall,
-                opts.workers.min(report.ran),
+                opts.workers.min(report.ran + report.interrupted),
                 report.ran as f64 * 3600.0 / wall.max(1e-9)
             )
         } else {
@@ -207,7 +223,13 @@ fn run_cmd(args: &RunArgs) -> anyhow::Result<ExitCode> {
     );
     print_outputs(&sweep.plan, &report.outputs);
     if report.stopped {
-        println!("stopped: run the same command again to do the rest");
+        say!(
+            "stopped{}: run the same command again to do the rest",
+            match report.interrupted {
+                0 => String::new(),
+                n => format!(" ({n} runs cut short, to be done again)"),
+            }
+        );
         return Ok(ExitCode::from(130));
     }
     Ok(if report.failed() + report.unfinished() == 0 {
@@ -222,7 +244,7 @@ fn merge_cmd(args: &MergeArgs) -> anyhow::Result<ExitCode> {
     let report = sweep::merge(&args.dirs, &into)?;
     let o = &report.outputs;
     let plan = sweep::Plan::read(&into)?;
-    println!(
+    say!(
         "merged {} shares into {}: {} runs: {} complete, {} failed, {} missing ({} copied)",
         args.dirs.len(),
         into.display(),
@@ -233,7 +255,7 @@ fn merge_cmd(args: &MergeArgs) -> anyhow::Result<ExitCode> {
         report.copied
     );
     if !report.missing.is_empty() {
-        println!("  missing: {}", report.missing.join(" "));
+        say!("  missing: {}", report.missing.join(" "));
     }
     print_outputs(&plan, o);
     Ok(if o.count(|s| !s.is_complete()) == 0 {
@@ -262,7 +284,7 @@ fn slurm_cmd(args: &SlurmArgs) -> anyhow::Result<ExitCode> {
         std::fs::create_dir_all(dir)?;
     }
     std::fs::write(&script, sweep::slurm::script(&cfg))?;
-    println!(
+    say!(
         "{}: {} runs in {} shares; submit with: bash {}",
         script.display(),
         sweep.plan.len(),
@@ -293,12 +315,12 @@ fn print_outputs(plan: &sweep::Plan, o: &Outputs) {
                 format!("{m} {mean}{ci}")
             })
             .collect();
-        println!("  point {p} ({}): {}", values.join(", "), stats.join(", "));
+        say!("  point {p} ({}): {}", values.join(", "), stats.join(", "));
     }
-    println!("  runs: {}", o.runs_csv.display());
-    println!("  aggregate: {}", o.aggregate_csv.display());
+    say!("  runs: {}", o.runs_csv.display());
+    say!("  aggregate: {}", o.aggregate_csv.display());
     if let Some(first) = o.plots.first().and_then(|p| p.parent()) {
-        println!("  plots: {}", first.display());
+        say!("  plots: {}", first.display());
     }
 }
 
@@ -328,7 +350,7 @@ impl Progress {
                 workers,
             } => {
                 self.total = scope - skipped;
-                eprintln!(
+                esay!(
                     "{scope} runs, {skipped} kept from an earlier run, {} to do on {workers} workers",
                     self.total
                 );
@@ -370,7 +392,7 @@ impl Progress {
                         bar.set_message(format!("{} failed", self.failed));
                         bar.inc(1);
                     }
-                    None => eprintln!("[{}/{}] {line}", self.done, self.total),
+                    None => esay!("[{}/{}] {line}", self.done, self.total),
                 }
             }
         }

@@ -59,8 +59,10 @@ pub struct Report {
     pub scope: usize,
     /// Runs kept from an earlier run of the sweep.
     pub skipped: usize,
-    /// Runs done now.
+    /// Runs done now, to their end.
     pub ran: usize,
+    /// Runs cut short by the stop (done again by the next run of the sweep).
+    pub interrupted: usize,
     /// The sweep was stopped before every run was done.
     pub stopped: bool,
     /// The outputs, and every run's state.
@@ -110,11 +112,13 @@ pub fn run_sweep(
     });
     let next = AtomicUsize::new(0);
     let ran = AtomicUsize::new(0);
+    let interrupted = AtomicUsize::new(0);
     let (tx, rx) = mpsc::channel::<(usize, Option<(RunState, Duration)>)>();
     std::thread::scope(|s| {
         for _ in 0..workers {
             let tx = tx.clone();
-            let (next, ran, to_do, runs_dir) = (&next, &ran, &to_do, &runs_dir);
+            let (next, ran, interrupted) = (&next, &ran, &interrupted);
+            let (to_do, runs_dir) = (&to_do, &runs_dir);
             s.spawn(move || loop {
                 if cancel.load(Ordering::Relaxed) {
                     break;
@@ -124,7 +128,12 @@ pub fn run_sweep(
                 let _ = tx.send((k, None));
                 let t0 = Instant::now();
                 let state = run_one(sweep, run, runs_dir, &opts.firmware, cancel);
-                ran.fetch_add(1, Ordering::Relaxed);
+                let counter = if state == RunState::Interrupted {
+                    interrupted
+                } else {
+                    ran
+                };
+                counter.fetch_add(1, Ordering::Relaxed);
                 let _ = tx.send((k, Some((state, t0.elapsed()))));
             });
         }
@@ -145,6 +154,7 @@ pub fn run_sweep(
         scope: scope.len(),
         skipped: scope.len() - to_do.len(),
         ran: ran.load(Ordering::Relaxed),
+        interrupted: interrupted.load(Ordering::Relaxed),
         stopped: cancel.load(Ordering::Relaxed),
         outputs,
     };
