@@ -57,11 +57,16 @@ fn find(program: &str) -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .unwrap_or(16817)
+/// Two distinct free ports on 127.0.0.1 (both held until both are known).
+fn free_ports() -> (u16, u16) {
+    let bind = || std::net::TcpListener::bind("127.0.0.1:0");
+    match (bind(), bind()) {
+        (Ok(a), Ok(b)) => match (a.local_addr(), b.local_addr()) {
+            (Ok(x), Ok(y)) => (x.port(), y.port()),
+            _ => (16817, 16818),
+        },
+        _ => (16817, 16818),
+    }
 }
 
 fn tail(path: &Path) -> String {
@@ -120,6 +125,7 @@ impl Cluster {
             .map(|h| h.trim().to_owned())
             .map_err(|e| e.to_string())?;
         let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let (ctld, slurmd) = free_ports();
         let d = dir.display();
         let conf = dir.join("slurm.conf");
         let text = format!(
@@ -150,8 +156,6 @@ impl Cluster {
              MinJobAge=600\n\
              NodeName={host} NodeAddr=127.0.0.1 CPUs={cpus} RealMemory=1000 State=UNKNOWN\n\
              PartitionName=sweep Nodes={host} Default=YES MaxTime=INFINITE State=UP\n",
-            ctld = free_port(),
-            slurmd = free_port(),
         );
         std::fs::write(&conf, text).map_err(|e| e.to_string())?;
         let mut cluster = Cluster {
