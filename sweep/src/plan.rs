@@ -147,11 +147,21 @@ impl Plan {
         std::fs::write(&path, text + "\n").map_err(write_err(&path))
     }
 
-    /// Reads `plan.json` from `dir`.
+    /// Reads `plan.json` from `dir`; one that is not a whole plan (a point of the wrong
+    /// width, no seeds, a plot parameter that is none of the parameters) is no sweep.
     pub fn read(dir: &Path) -> Result<Self, SweepError> {
-        let text = std::fs::read_to_string(dir.join("plan.json"))
-            .map_err(|_| SweepError::NotASweep { dir: dir.into() })?;
-        serde_json::from_str(&text).map_err(|_| SweepError::NotASweep { dir: dir.into() })
+        let not_a_sweep = || SweepError::NotASweep { dir: dir.into() };
+        let text = std::fs::read_to_string(dir.join("plan.json")).map_err(|_| not_a_sweep())?;
+        let plan: Plan = serde_json::from_str(&text).map_err(|_| not_a_sweep())?;
+        let whole = !plan.parameters.is_empty()
+            && !plan.seeds.is_empty()
+            && plan.points.iter().all(|p| p.len() == plan.parameters.len())
+            && plan.parameters.contains(&plan.plot_x);
+        if whole {
+            Ok(plan)
+        } else {
+            Err(not_a_sweep())
+        }
     }
 }
 
@@ -271,5 +281,14 @@ mod tests {
         let p = plan();
         p.write(dir.path()).unwrap();
         assert_eq!(Plan::read(dir.path()).unwrap(), p);
+        let mut bad = p.clone();
+        bad.points[1].pop();
+        bad.write(dir.path()).unwrap();
+        assert!(matches!(
+            Plan::read(dir.path()),
+            Err(SweepError::NotASweep { .. })
+        ));
+        std::fs::write(dir.path().join("plan.json"), "{").unwrap();
+        assert!(Plan::read(dir.path()).is_err());
     }
 }
