@@ -481,7 +481,7 @@ pub fn reply_json(r: &Reply) -> (bool, Value) {
 
 /// A camera report as JSON: centroids in pixels, the leader only while one is followed.
 fn camera_json(c: &ubc_app::program::console::CameraReport) -> Value {
-    let mut v = json!({ "frame": c.sequence, "blobs": c.blobs });
+    let mut v = json!({ "frame": c.sequence, "frames_processed": c.frames, "blobs": c.blobs });
     if c.leader_class != 0 {
         v["leader"] = json!({
             "class": c.leader_class,
@@ -653,6 +653,7 @@ mod tests {
             follow_state: 1,
             leader_bearing_mrad: -12,
             leader_range_mm: 0,
+            frames: 40,
             blob: Some((
                 0,
                 BlobReport {

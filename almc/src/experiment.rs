@@ -1,23 +1,26 @@
-//! `almc experiment run FILE [--out DIR] [--engine iss|qemu] [--threads N] [--realtime]`:
-//! plays an experiment file (see `docs/experiments.md`) in the arena, every car on the soft
-//! core's model in virtual time (or in QEMU in real time), shows its progress and summary, and
-//! writes its results; `almc experiment check FILE` only checks the file.
+//! `almc experiment run FILE [--out DIR] [--engine iss|qemu] [--threads N] [--realtime]
+//! [--live [ADDR]]`: plays an experiment file (see `docs/experiments.md`) in the arena, every
+//! car on the soft core's model in virtual time (or in QEMU in real time), shows its progress
+//! and summary, and writes its results (with `--live`, also serves them to Foxglove while it
+//! runs); `almc experiment check FILE` only checks the file.
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use arena::experiment::{self, Experiment};
+use arena::experiment::{self, Experiment, RunOptions};
 use arena::world::EngineKind;
 use clap::{Args, Subcommand};
 
 /// `almc experiment ...`
 #[derive(Debug, Subcommand)]
 pub enum ExperimentCommand {
-    /// Run an experiment: progress each second of world time, then a summary and CSV, JSONL,
-    /// JSON and SVG outputs. Exit code 0: every phase completed without collision and no car
-    /// failed; 2: the run ended otherwise; 3: a car's firmware stopped; 1: error.
+    /// Run an experiment: progress each second of world time, then a summary; writes CSV,
+    /// JSONL, JSON, MCAP, the plots (SVG, PNG) and report.html. Exit code 0: every phase
+    /// completed without collision and no car failed; 2: the run ended otherwise; 3: a car's
+    /// firmware stopped; 1: error.
     Run(RunArgs),
     /// Check an experiment file without running it.
     Check {
@@ -53,6 +56,26 @@ pub struct RunArgs {
     /// Profile car ID's processor by function (iss): `profile-car<ID>.csv` in the outputs.
     #[arg(long = "profile-car", value_name = "ID")]
     profile_car: Vec<u8>,
+    /// Serve the run live to Foxglove over its WebSocket protocol on ADDR (a loopback address,
+    /// default 127.0.0.1:8765): the same channels as run.mcap. Paces world time to the wall
+    /// clock, as --realtime does.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8765", value_parser = loopback)]
+    live: Option<SocketAddr>,
+}
+
+/// A loopback socket address (the live view is for this machine only).
+fn loopback(s: &str) -> Result<SocketAddr, String> {
+    let addr: SocketAddr = s
+        .parse()
+        .map_err(|e| format!("`{s}` is not an address with a port (127.0.0.1:8765): {e}"))?;
+    if addr.ip().is_loopback() {
+        Ok(addr)
+    } else {
+        Err(format!(
+            "{} is not a loopback address: the live view serves this machine only (127.0.0.1 or ::1)",
+            addr.ip()
+        ))
+    }
 }
 
 pub fn run(cmd: ExperimentCommand) -> ExitCode {
@@ -92,7 +115,7 @@ fn run_one(args: &RunArgs) -> ExitCode {
     if let Some(t) = args.threads {
         exp.threads = usize::from(t);
     }
-    exp.realtime |= args.realtime;
+    exp.realtime |= args.realtime || args.live.is_some();
     for &id in &args.profile_car {
         if !exp.cars.iter().any(|c| c.id == id) {
             eprintln!("error: --profile-car {id}: no such car in {}", exp.name);
@@ -138,7 +161,20 @@ fn run_one(args: &RunArgs) -> ExitCode {
             ground.display()
         );
     }
-    let result = experiment::run(&exp, &firmware, &out, &mut |p| println!("{p}"), &cancel);
+    if let Some(addr) = args.live {
+        println!(
+            "live: open ws://{addr} in Foxglove (Open connection > Foxglove WebSocket); the run goes at wall-clock pace"
+        );
+    }
+    let opts = RunOptions { live: args.live };
+    let result = experiment::run_with(
+        &exp,
+        &firmware,
+        &out,
+        &opts,
+        &mut |p| println!("{p}"),
+        &cancel,
+    );
     match result {
         Ok(s) => {
             print_summary(&s, &out);
@@ -254,4 +290,9 @@ pub fn print_summary(s: &experiment::Summary, out: &std::path::Path) {
     );
     println!("  outputs in {}", out.display());
     println!("  plot: {}", out.join("trajectories.svg").display());
+    println!(
+        "  report: {} (recording: {}, opens in Foxglove)",
+        out.join("report.html").display(),
+        out.join("run.mcap").display()
+    );
 }

@@ -191,3 +191,34 @@ fn qemu_run_ctrl_c_and_sigkill_leave_no_child_and_no_stale_socket() {
     exits_within(&mut child, Duration::from_secs(5));
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn a_killed_run_leaves_its_data_up_to_then_marked_incomplete() {
+    let d = dir("iss-kill");
+    let (mut child, rx) = start(&d, "iss");
+    // Two progress lines: the maneuvers have run for two seconds of world time, so at least
+    // one flush of the outputs has happened.
+    wait_line(&rx, "t=  2.0s", Duration::from_secs(120));
+    signal(&child, "-KILL");
+    exits_within(&mut child, Duration::from_secs(5));
+    let out = d.join("out");
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["state"], "incomplete", "{run}");
+    assert!(!out.join("summary.json").exists());
+    for car in 1..=4 {
+        let csv = std::fs::read_to_string(out.join(format!("car{car}.csv"))).unwrap();
+        let rows = csv.lines().count() - 1;
+        assert!(rows >= 10, "car{car}.csv has {rows} rows");
+        for row in csv.lines().skip(1) {
+            assert_eq!(row.split(',').count(), 5, "a torn row: {row:?}");
+        }
+    }
+    let events = std::fs::read_to_string(out.join("events.jsonl")).unwrap();
+    assert!(events.lines().count() >= 5);
+    for line in events.lines() {
+        serde_json::from_str::<serde_json::Value>(line).expect("every flushed event is whole");
+    }
+    assert!(events.contains("\"phase-started\""));
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -3,7 +3,8 @@
 //! hub that runs the medium between socket-attached radios ([`hub`]), the world that owns time
 //! and runs every car's firmware on a car engine ([`world`], [`engine`]: the soft core's
 //! model in virtual time, or QEMU in real time), and experiments played in it
-//! ([`experiment`], [`runner`], [`metrics`], [`plot`]).
+//! ([`experiment`], [`runner`], [`metrics`]) with what they record for people to look at
+//! ([`recording`]: `run.mcap` and the live view; [`plot`]; [`report`]).
 
 #![forbid(unsafe_code)]
 
@@ -16,5 +17,7 @@ pub mod metrics;
 pub mod plot;
 pub mod radio_medium;
 pub mod radio_sim;
+pub mod recording;
+pub mod report;
 pub mod runner;
 pub mod world;

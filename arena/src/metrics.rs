@@ -96,6 +96,26 @@ pub fn min_separation(tracks: &[Vec<Sample>]) -> Option<Encounter> {
     best
 }
 
+/// The smallest distance between two cars' body centres at each sample time, `(t, mm)`
+/// (empty with fewer than two cars).
+pub fn separation_series(tracks: &[Vec<Sample>]) -> Vec<(f64, f64)> {
+    let n = tracks.iter().map(Vec::len).min().unwrap_or(0);
+    if tracks.len() < 2 {
+        return Vec::new();
+    }
+    (0..n)
+        .map(|s| {
+            let mut best = f64::INFINITY;
+            for i in 0..tracks.len() {
+                for j in i + 1..tracks.len() {
+                    best = best.min(body_distance(&tracks[i][s], &tracks[j][s]));
+                }
+            }
+            (tracks[0][s].t, best)
+        })
+        .collect()
+}
+
 /// Collisions: each time the body centres of a pair of cars come closer than
 /// [`COLLISION_MM`] (one entry per approach, at its first sample).
 pub fn collisions(tracks: &[Vec<Sample>]) -> Vec<Encounter> {

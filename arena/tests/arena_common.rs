@@ -125,7 +125,19 @@ fn check_outputs(out: &Path, exp: &Experiment) -> Value {
     assert!(events.contains("\"phase-started\""));
     let svg = std::fs::read_to_string(out.join("trajectories.svg")).unwrap();
     assert!(svg.starts_with("<svg ") && svg.trim_end().ends_with("</svg>"));
-    assert_eq!(svg.matches("<polyline").count(), exp.cars.len());
+    for car in &exp.cars {
+        let entry = format!("\ncar {}\n", car.id);
+        assert!(svg.contains(&entry), "no legend entry of car {}", car.id);
+    }
+    for plot in ["trajectories", "phase_error", "separation", "radio"] {
+        let png = std::fs::read(out.join(format!("{plot}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{plot}.png");
+        assert!(out.join(format!("{plot}.svg")).is_file(), "{plot}.svg");
+    }
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(report.contains("data:image/png;base64,"));
+    let mcap = std::fs::read(out.join("run.mcap")).unwrap();
+    assert!(mcap.starts_with(b"\x89MCAP0\r\n") && mcap.ends_with(b"\x89MCAP0\r\n"));
     let summary: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     summary

@@ -94,6 +94,8 @@ struct IssCar {
     elf: Arc<Vec<u8>>,
     out: Vec<Stamped>,
     console: Vec<u8>,
+    /// Console bytes with their world times, kept for the world's tap.
+    console_tap: Option<Vec<(Nanos, u8)>>,
     log_format: Arc<LogFormat>,
     failure: Option<Failure>,
     /// World time up to which the car has run.
@@ -147,7 +149,12 @@ impl IssCar {
                     port: Port::Radio,
                     byte,
                 } => io.radio_out.push((t, byte)),
-                Output::Console(b) => self.console.push(b),
+                Output::Console(b) => {
+                    self.console.push(b);
+                    if let Some(tap) = self.console_tap.as_mut() {
+                        tap.push((t, b));
+                    }
+                }
             }
         }
         if self.console.len() > MAX_CONSOLE {
@@ -243,6 +250,7 @@ impl IssEngine {
                 elf: img.bytes.clone(),
                 out: Vec::new(),
                 console: Vec::new(),
+                console_tap: None,
                 log_format: img.log_format.clone(),
                 failure: None,
                 ran_to: 0,
@@ -363,6 +371,22 @@ impl CarEngine for IssEngine {
 
     fn profile(&self, k: usize) -> Option<Vec<(u64, f64, String)>> {
         IssEngine::profile(self, k)
+    }
+
+    fn tap_console(&mut self, on: bool) {
+        for c in &mut self.cars {
+            c.console_tap = on.then(Vec::new);
+        }
+    }
+
+    fn take_console(&mut self, k: usize, out: &mut Vec<(Nanos, u8)>) {
+        if let Some(tap) = self.cars.get_mut(k).and_then(|c| c.console_tap.as_mut()) {
+            out.append(tap);
+        }
+    }
+
+    fn log_format(&self, k: usize) -> Option<Arc<LogFormat>> {
+        self.cars.get(k).map(|c| c.log_format.clone())
     }
 
     fn kill(&mut self, k: usize, why: &str) {

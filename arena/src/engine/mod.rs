@@ -150,6 +150,16 @@ pub trait CarEngine: Send {
     fn profile(&self, _k: usize) -> Option<Vec<(u64, f64, String)>> {
         None
     }
+    /// From now on, keep car console bytes for [`CarEngine::take_console`] (engines that see
+    /// them).
+    fn tap_console(&mut self, _on: bool) {}
+    /// Moves car `k`'s console bytes kept since the last call, with the world time each was
+    /// written, to `out`.
+    fn take_console(&mut self, _k: usize, _out: &mut Vec<(Nanos, u8)>) {}
+    /// How car `k`'s console bytes become log lines (engines that hand them out).
+    fn log_format(&self, _k: usize) -> Option<std::sync::Arc<qemu_harness::LogFormat>> {
+        None
+    }
     /// Ends car `k`'s firmware now, as a crash would (`kill -9` of its emulator); the
     /// world then treats it as failed.
     fn kill(&mut self, k: usize, why: &str);

@@ -58,6 +58,8 @@ pub enum ExperimentError {
         /// The cause.
         source: std::io::Error,
     },
+    /// The recording (`run.mcap`, the live view, the plots or the report) failed.
+    Recording(String),
 }
 
 /// What is wrong with a car reference in a phase.
@@ -266,6 +268,7 @@ impl fmt::Display for ExperimentError {
                 write!(f, "car {id} failed at {t:.3} s: {reason}")
             }
             Self::Write { path, source } => write!(f, "writing {}: {source}", path.display()),
+            Self::Recording(e) => write!(f, "{e}"),
         }
     }
 }

@@ -17,7 +17,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 use ubc_app::program::console::{Status, MAX_POINTS};
 
-pub use crate::runner::{run, CarFailure, CarResult, PhaseResult, Progress, Summary};
+pub use crate::recording::RunOptions;
+pub use crate::runner::{run, run_with, CarFailure, CarResult, PhaseResult, Progress, Summary};
 pub use error::{CarProblem, ExperimentError, Invalid};
 
 mod check;

@@ -17,6 +17,29 @@ pub(super) enum Purpose {
     Waypoint { phase: usize, index: usize },
     /// Status poll.
     Status,
+    /// Camera report (frames the car's vision processed).
+    Camera,
+}
+
+/// Frames a car's vision processed, counted from its camera reports (whose count wraps at
+/// 65536).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct FrameCount {
+    /// World time of the first and of the latest report, s.
+    pub(super) first_s: f64,
+    pub(super) last_s: f64,
+    /// The latest report's count.
+    pub(super) last: u16,
+    /// Frames between the first and the latest report.
+    pub(super) frames: u64,
+}
+
+impl FrameCount {
+    /// Frames per second between the first and the latest report.
+    pub(super) fn fps(&self) -> Option<f64> {
+        let dt = self.last_s - self.first_s;
+        (dt > 0.5).then(|| self.frames as f64 / dt)
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -53,6 +76,23 @@ pub(super) struct CarState {
     pub(super) goto_error_mm: Option<f64>,
     /// Index of the first point of the go-to list last sent (after restarts).
     pub(super) goto_offset: usize,
+    /// Frames its vision processed (experiments with a camera).
+    pub(super) frames: Option<FrameCount>,
+}
+
+impl CarState {
+    /// A camera report with frame count `frames` at world time `t` (s).
+    pub(super) fn count_frames(&mut self, t: f64, frames: u16) {
+        let c = self.frames.get_or_insert(FrameCount {
+            first_s: t,
+            last_s: t,
+            last: frames,
+            frames: 0,
+        });
+        c.frames += u64::from(frames.wrapping_sub(c.last));
+        c.last = frames;
+        c.last_s = t;
+    }
 }
 
 /// The running phase.
@@ -402,7 +442,13 @@ impl Runner<'_> {
                     }
                 }
             }
-            (Purpose::Status, _) => {}
+            (Purpose::Camera, Reply::Camera(r)) => {
+                let t = self.world.now().as_secs_f64();
+                if let Some(k) = k {
+                    self.cars[k].count_frames(t, r.frames);
+                }
+            }
+            (Purpose::Status | Purpose::Camera, _) => {}
             (Purpose::Stop { .. }, _) => {}
             (Purpose::Restart { phase }, Reply::GroupStarted | Reply::ManeuverStarted(_))
                 if self.current(phase) =>
@@ -458,7 +504,7 @@ impl Runner<'_> {
     /// A request got no (useful) answer: retry maneuver commands a few times.
     pub(super) fn failed(&mut self, mut cmd: Command, why: &str) {
         match cmd.purpose {
-            Purpose::Status => {}
+            Purpose::Status | Purpose::Camera => {}
             Purpose::Start { phase }
             | Purpose::Stop { phase }
             | Purpose::Restart { phase }

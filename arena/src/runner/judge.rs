@@ -220,20 +220,28 @@ impl Runner<'_> {
             json!({ "phase": a.index + 1, "converged_s": converged_s }),
         );
         let waypoints_sent = a.next_waypoint;
+        // Times to the run loop's 10 ms, distances to 0.1 mm.
+        let s = |v: f64| round_to(v, 2);
+        let mm = |v: f64| round_to(v, 1);
         self.results.push(PhaseResult {
             phase: a.index + 1,
             kind: phase.kind.name(),
-            start_s: a.start_s,
-            end_s: t,
+            start_s: s(a.start_s),
+            end_s: s(t),
             completed,
             timed_out,
-            started_s: a.started_s,
-            converged_s,
-            settled_s: a.settled_s,
-            tolerance_mm: phase.tolerance_mm,
-            error_after_settled: metrics::error_stats(&after),
-            final_error_mm: a.errors.last().map(|&(_, e)| e),
-            reported_converged_s: a.reported_converged_s,
+            started_s: a.started_s.map(s),
+            converged_s: converged_s.map(s),
+            settled_s: a.settled_s.map(s),
+            tolerance_mm: mm(phase.tolerance_mm),
+            error_after_settled: metrics::error_stats(&after).map(|e| ErrorStats {
+                max_mm: mm(e.max_mm),
+                mean_mm: mm(e.mean_mm),
+                p95_mm: mm(e.p95_mm),
+                samples: e.samples,
+            }),
+            final_error_mm: a.errors.last().map(|&(_, e)| mm(e)),
+            reported_converged_s: a.reported_converged_s.map(s),
             waypoints_sent,
             command_retries: a.command_retries,
             command_failures: a.command_failures,

@@ -17,7 +17,7 @@ mod record;
 #[cfg(test)]
 mod tests;
 
-use control::{CarState, Runner};
+use control::{CarState, Purpose, Runner};
 pub use output::round_to;
 
 use crate::experiment::{
@@ -25,7 +25,7 @@ use crate::experiment::{
     RENDEZVOUS_STILL_MM_S,
 };
 use crate::metrics::{self, ErrorStats, Sample};
-use crate::plot;
+use crate::recording::{self, Recording, RunOptions};
 use crate::world::{CarTruth, PendingReply, World, WorldError, MM_PER_UNIT};
 use maneuvers::Formation;
 use serde::Serialize;
@@ -43,6 +43,8 @@ use ubc_app::program::console::{
 
 /// Trajectory sample period.
 const SAMPLE: Duration = Duration::from_millis(100);
+/// World time between two camera reports of every car (experiments with a camera).
+const CAMERA_EVERY: Duration = Duration::from_secs(20);
 /// World time between two looks of the run loop.
 const TICK: Duration = Duration::from_millis(10);
 /// Blocking console request timeout (bring-up, final statistics).
@@ -78,6 +80,7 @@ pub struct CarResult {
     /// When it finished its last go-to maneuver, s since the maneuvers started.
     pub arrival_s: Option<f64>,
     /// Times (s) at which the car left the arena.
+    #[serde(rename = "wall_violations_s")]
     pub wall_violations: Vec<f64>,
     /// The firmware's console counters.
     pub stats: Value,
@@ -89,6 +92,9 @@ pub struct CarResult {
     pub states_heard: u64,
     /// Awake cycles over cycles of the car's processor (virtual-time engine only).
     pub processor_load: Option<f64>,
+    /// Frames per second its vision processed during the maneuvers, at its processor's
+    /// clock (experiments with a camera).
+    pub camera_fps: Option<f64>,
     /// The car's firmware stopped during the maneuvers: when and why.
     pub failed: Option<CarFailure>,
 }
@@ -140,7 +146,9 @@ pub struct PhaseResult {
     pub command_retries: u32,
     /// Maneuver commands given up on.
     pub command_failures: u32,
-    /// `[t, error_mm]` every 0.5 s, t from the phase start.
+    /// `[t, error_mm]` every 0.5 s, t from the phase start (in `summary.json` as columns
+    /// `{"t_s": [...], "error_mm": [...]}`).
+    #[serde(serialize_with = "output::series_columns")]
     pub error_series: Vec<[f64; 2]>,
 }
 
@@ -313,7 +321,7 @@ impl EventLog {
         if let (Value::Object(m), Value::Object(x)) = (&mut v, extra) {
             m.extend(x);
         }
-        let r = self.rec.event(&v.to_string());
+        let r = self.rec.event(at, &v.to_string());
         self.keep(r);
     }
 
@@ -354,7 +362,7 @@ fn write_file(path: &Path, text: &str) -> Result<(), ExperimentError> {
 /// Runs the experiment in a fresh world with the firmware at `firmware` (a `softcore` build
 /// for the virtual-time engine, a `qemu_virt` build for QEMU), reporting a [`Progress`] line
 /// each second of world time, and writes `car<ID>.csv`, `phases.csv`, `events.jsonl`,
-/// `summary.json`, `trajectories.svg` and `run.json` to `out`. Setting `cancel` ends the
+/// `summary.json`, the plots, `report.html`, `run.mcap` and `run.json` to `out`. Setting `cancel` ends the
 /// maneuvers early (outputs are still written, `cancelled` is set in the summary) or aborts
 /// bring-up. The world is torn down before this returns, whatever happens.
 ///
@@ -367,7 +375,21 @@ pub fn run(
     progress: &mut dyn FnMut(&Progress),
     cancel: &AtomicBool,
 ) -> Result<Summary, ExperimentError> {
-    let result = run_inner(exp, firmware, out, progress, cancel);
+    run_with(exp, firmware, out, &RunOptions::default(), progress, cancel)
+}
+
+/// [`run`] with [`RunOptions`] (a live view, which also paces world time to the wall clock).
+pub fn run_with(
+    exp: &Experiment,
+    firmware: &Path,
+    out: &Path,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(&Progress),
+    cancel: &AtomicBool,
+) -> Result<Summary, ExperimentError> {
+    let mut exp = exp.clone();
+    exp.realtime |= opts.live.is_some();
+    let result = run_inner(&exp, firmware, out, opts, progress, cancel);
     if let Err(e) = &result {
         if out.is_dir() {
             let info = json!({ "state": "error", "error": e.to_string() });
@@ -384,6 +406,7 @@ fn run_inner(
     exp: &Experiment,
     firmware: &Path,
     out: &Path,
+    opts: &RunOptions,
     progress: &mut dyn FnMut(&Progress),
     cancel: &AtomicBool,
 ) -> Result<Summary, ExperimentError> {
@@ -396,6 +419,10 @@ fn run_inner(
     record::mark_incomplete(out)?;
     let mut world = World::start(&exp.world_config(firmware))?;
     let mut log = EventLog::create(out, world.ids())?;
+    let formats = recording::log_formats(&world);
+    let mut rec = Recording::start(&mut world, &formats, out, exp, opts)
+        .map_err(|e| ExperimentError::Recording(e.to_string()))?;
+    log.rec.attach(rec.channels());
     log.push(
         world.now(),
         None,
@@ -454,6 +481,7 @@ fn run_inner(
             return Err(ExperimentError::BringUp { id, last: last[k] });
         }
         world.run_for(Duration::from_millis(300));
+        rec.drain(&mut world);
     }
 
     let t0 = world.now();
@@ -480,6 +508,7 @@ fn run_inner(
     let mut finished = false;
     let mut aborted = false;
     let mut crashed = vec![false; exp.faults.crash.len()];
+    let mut next_camera = t0;
     r.begin_phase(0);
     next_phase += 1;
     loop {
@@ -508,6 +537,7 @@ fn run_inner(
                 r.log.sample(k, s);
             }
             r.last_sample.clone_from(&sample);
+            rec.sample(r.world, &sample);
             for ev in r.world.take_events() {
                 if let Some(reason) = ev.what.strip_prefix("car-failed: ") {
                     failures.push(CarFailure {
@@ -540,6 +570,7 @@ fn run_inner(
             if let Some(a) = &r.active {
                 if let Some(&(_, e)) = a.errors.last() {
                     r.log.phase_row(t, a.index + 1, e);
+                    rec.phase_error(t, a.index + 1, e);
                 }
             }
             // The next phase starts at its time (cutting this one short), or once this one
@@ -577,6 +608,13 @@ fn run_inner(
                     .kill_car(c.car, &format!("crash injected at {:.3} s", c.at_s));
             }
         }
+        if exp.camera_fps.is_some() && now >= next_camera {
+            // Often enough that the 16-bit frame count cannot wrap in between.
+            next_camera += CAMERA_EVERY;
+            for &id in &ids {
+                r.enqueue(id, Request::Camera { blob: 255 }, Purpose::Camera);
+            }
+        }
         if now >= next_progress {
             next_progress += Duration::from_secs(1);
             progress(&r.progress(next_phase, &failures));
@@ -587,6 +625,7 @@ fn run_inner(
         }
         r.pump();
         r.world.run_for(TICK);
+        rec.drain(r.world);
     }
     let ran = r.t();
     if r.active.is_some() {
@@ -620,6 +659,8 @@ fn run_inner(
         failures,
     };
     let summary = output::finish(exp, &mut world, run, out)?;
+    rec.finish(&mut world, &summary, out)
+        .map_err(ExperimentError::Recording)?;
     let state = if summary.aborted {
         "aborted"
     } else if summary.cancelled {

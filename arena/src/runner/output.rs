@@ -1,7 +1,6 @@
 //! The end of a run: the cars' link statistics, the summary, and the output files.
 
 use super::control::CarState;
-use super::judge::waypoint_mm;
 use super::*;
 
 /// What the run loop hands over once the maneuvers are over.
@@ -62,6 +61,20 @@ pub(super) fn finish(
         }
         stats.push(Value::Object(pages));
     }
+    // The camera cars' last frame counts.
+    let mut states = states;
+    if exp.camera_fps.is_some() {
+        for (k, &id) in ids.iter().enumerate() {
+            if truth_now[k].failure.is_none() {
+                if let Ok(Reply::Camera(r)) =
+                    world.request(id, &Request::Camera { blob: 255 }, Duration::from_secs(3))
+                {
+                    let t = world.now().as_secs_f64();
+                    states[k].count_frames(t, r.frames);
+                }
+            }
+        }
+    }
     for ev in world.take_events() {
         log.push_at(ev.at, Some(ev.car), &ev.what);
     }
@@ -92,7 +105,10 @@ pub(super) fn finish(
             arrived: targets.is_empty()
                 || (!s.goto_missed && !s.goto_running && s.arrival.is_some()),
             arrival_s: s.arrival.map(|a| round_to(a, 2)),
-            wall_violations: metrics::wall_violations(&tracks[k]),
+            wall_violations: metrics::wall_violations(&tracks[k])
+                .into_iter()
+                .map(|t| round_to(t, 3))
+                .collect(),
             stats: stats[k].clone(),
             lbc: json!({
                 "rx_bytes": t.lbc.rx_bytes, "tx_bytes": t.lbc.tx_bytes,
@@ -106,6 +122,7 @@ pub(super) fn finish(
             tracking: json!({ "delivered": t.fixes_delivered, "dropped": t.fixes_dropped }),
             states_heard: t.states_heard,
             processor_load: load.map(|l| round_to(l.load(), 4)),
+            camera_fps: s.frames.and_then(|f| f.fps()).map(|f| round_to(f, 2)),
             failed: failures.iter().find(|f| f.car == id).cloned(),
         });
     }
@@ -144,7 +161,7 @@ pub(super) fn finish(
             .iter()
             .map(|e| {
                 json!({
-                    "cars": [ids[e.cars.0], ids[e.cars.1]], "t": e.t,
+                    "cars": [ids[e.cars.0], ids[e.cars.1]], "t_s": round_to(e.t, 3),
                     "distance_mm": round_to(e.distance_mm, 1), "phase": phase_at(e.t),
                 })
             })
@@ -167,10 +184,6 @@ pub(super) fn finish(
     }
     let text = serde_json::to_string_pretty(&summary).unwrap_or_default();
     write_file(&out.join("summary.json"), &text)?;
-    write_file(
-        &out.join("trajectories.svg"),
-        &plot_document(exp, &ids, &tracks, &summary.phases),
-    )?;
     Ok(summary)
 }
 
@@ -209,52 +222,12 @@ pub(super) fn write_run_info(
     write_file(&out.join("run.json"), &text)
 }
 
-/// The plot: tracks, go-to points and formation waypoints as crosses, circles drawn, phase
-/// starts numbered on every track.
-pub(super) fn plot_document(
-    exp: &Experiment,
-    ids: &[u8],
-    tracks: &[Vec<Sample>],
-    phases: &[PhaseResult],
-) -> String {
-    let targets: Vec<Vec<(f64, f64)>> = ids
-        .iter()
-        .map(|&id| {
-            let mut pts = Vec::new();
-            for p in &exp.phases {
-                pts.extend(p.goto_points(id).into_iter().map(waypoint_mm));
-                if let PhaseKind::Formation(f) = &p.kind {
-                    if f.leader == id {
-                        pts.extend(f.waypoints.iter().copied().map(waypoint_mm));
-                    }
-                }
-            }
-            pts
-        })
-        .collect();
-    let plot_tracks: Vec<plot::Track<'_>> = ids
-        .iter()
-        .enumerate()
-        .map(|(k, &id)| plot::Track {
-            id,
-            samples: &tracks[k],
-            targets: &targets[k],
-        })
-        .collect();
-    let overlay = plot::Overlay {
-        phase_starts: phases.iter().map(|p| (p.phase, p.start_s)).collect(),
-        circles: exp
-            .phases
-            .iter()
-            .filter_map(|p| match &p.kind {
-                PhaseKind::Circle {
-                    centre,
-                    radius_units,
-                    ..
-                } => Some((waypoint_mm(*centre), f64::from(*radius_units) * MM_PER_UNIT)),
-                _ => None,
-            })
-            .collect(),
-    };
-    plot::svg_with(&exp.name, &plot_tracks, &overlay)
+/// `[t, error_mm]` pairs as columns named with their units: `{"t_s": [...], "error_mm": [...]}`.
+pub(super) fn series_columns<S: serde::Serializer>(
+    v: &[[f64; 2]],
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    let t: Vec<f64> = v.iter().map(|p| p[0]).collect();
+    let e: Vec<f64> = v.iter().map(|p| p[1]).collect();
+    serde::Serialize::serialize(&json!({ "t_s": t, "error_mm": e }), s)
 }

@@ -1,12 +1,15 @@
 //! Outputs written as the run goes: the event log, every car's trajectory and the phase
 //! errors are appended line by line and flushed at least once a second of world time (and at
 //! every progress line), so a run that fails or is killed leaves its data up to that moment.
-//! `run.json` says `"state": "incomplete"` until the run ends.
+//! `run.json` says `"state": "incomplete"` until the run ends. Events also go to the run's
+//! recording (`run.mcap`, [`crate::recording`]), which is flushed with the files.
 
 use super::*;
+use crate::recording::Channels;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Appends one output file.
 #[derive(Debug)]
@@ -17,13 +20,14 @@ struct Sink {
 
 impl Sink {
     fn create(path: PathBuf, header: Option<&str>) -> Result<Self, ExperimentError> {
-        let file =
-            File::create(&path)
-                .map(BufWriter::new)
-                .map_err(|source| ExperimentError::Write {
-                    path: path.clone(),
-                    source,
-                })?;
+        // Large enough never to fill between two flushes, so a file only ever ends on a whole
+        // line (a killed run leaves no torn row).
+        let file = File::create(&path)
+            .map(|f| BufWriter::with_capacity(1 << 20, f))
+            .map_err(|source| ExperimentError::Write {
+                path: path.clone(),
+                source,
+            })?;
         let mut s = Sink { path, file };
         if let Some(h) = header {
             s.line(h)?;
@@ -52,6 +56,7 @@ pub(super) struct Recorder {
     events: Sink,
     cars: Vec<Sink>,
     phases: Sink,
+    mcap: Option<Arc<Channels>>,
 }
 
 impl Recorder {
@@ -70,11 +75,34 @@ impl Recorder {
             events: Sink::create(out.join("events.jsonl"), None)?,
             cars,
             phases: Sink::create(out.join("phases.csv"), Some("t,phase,error_mm"))?,
+            mcap: None,
         })
     }
 
-    /// One event line (JSON).
-    pub(super) fn event(&mut self, json: &str) -> Result<(), ExperimentError> {
+    /// Events also go to `channels` (the run's recording), flushed with the files.
+    pub(super) fn attach(&mut self, channels: Arc<Channels>) {
+        self.mcap = Some(channels);
+    }
+
+    /// One event line (JSON) at world time `at`.
+    pub(super) fn event(&mut self, at: Duration, json: &str) -> Result<(), ExperimentError> {
+        if let Some(m) = &self.mcap {
+            let warning = [
+                "failed",
+                "stopped",
+                "timeout",
+                "restarted",
+                "Lost",
+                "Aborted",
+            ]
+            .iter()
+            .any(|w| json.contains(w));
+            m.event(
+                u64::try_from(at.as_nanos()).unwrap_or(u64::MAX),
+                json,
+                warning,
+            );
+        }
         self.events.line(json)
     }
 
@@ -105,6 +133,12 @@ impl Recorder {
         self.events.flush()?;
         for c in &mut self.cars {
             c.flush()?;
+        }
+        if let Some(m) = &self.mcap {
+            m.flush().map_err(|e| ExperimentError::Write {
+                path: "run.mcap".into(),
+                source: std::io::Error::other(e),
+            })?;
         }
         self.phases.flush()
     }

@@ -15,6 +15,7 @@
 
 mod config;
 mod ground;
+mod tap;
 mod tracker;
 
 mod truth;
@@ -24,6 +25,7 @@ pub use truth::{CarTruth, GroundCounters, NodeCounters, WorldEvent};
 
 pub use ground::PendingReply;
 pub use qemu_harness::{firmware_elf, softcore_elf};
+pub use tap::{LbcTraffic, NodeTraffic, Tap, TapConfig, TapFrame};
 
 use crate::camera::{CarPose, SyntheticCamera};
 use crate::camera_feed::{ram_file_name, FeedStats, WindowPublisher, RUN_DIR_PREFIX};
@@ -100,6 +102,7 @@ pub struct World {
     stop_failed: bool,
     scratch: Vec<(Nanos, usize, u8)>,
     rx_scratch: Vec<(Nanos, u8)>,
+    tap: Option<tap::TapState>,
     _dir: DirGuard,
 }
 
@@ -311,6 +314,7 @@ impl World {
             stop_failed: cfg.stop_failed_cars,
             scratch: Vec::new(),
             rx_scratch: Vec::new(),
+            tap: None,
             ids,
             _dir: dir,
         })
@@ -380,6 +384,9 @@ impl World {
             for &(t, b) in &io.radio_out {
                 self.scratch.push((t.saturating_sub(byte_ns), k, b));
             }
+            if let Some(tap) = self.tap.as_mut() {
+                tap.car_out(k, io, &mut *self.engine);
+            }
         }
         self.scratch.sort_by_key(|&(t, k, _)| (t, k));
         for &(t, k, b) in &self.scratch {
@@ -410,8 +417,12 @@ impl World {
                     what: "lbc-reset".into(),
                 });
             }
+            let before = self.io[k].lbc_in.len();
             while let Some((t, b)) = lbc.pop_tx(ahead_us) {
                 self.io[k].lbc_in.push((t * 1000, b));
+            }
+            if let Some(tap) = self.tap.as_mut() {
+                tap.lbc_out(k, &self.io[k].lbc_in[before..]);
             }
         }
         // The medium to t1; bytes it has queued for the cars up to the next quantum's end.
@@ -421,6 +432,9 @@ impl World {
             let before = self.io[k].radio_in.len();
             self.medium.take_rx(node, ahead, &mut self.io[k].radio_in);
             self.node_counters[k + 1].bytes_out += (self.io[k].radio_in.len() - before) as u64;
+            if let Some(tap) = self.tap.as_mut() {
+                tap.node(k + 1, &self.io[k].radio_in[before..], &[], t1);
+            }
         }
         // The ground station, and a person's ground station.
         self.rx_scratch.clear();
@@ -429,6 +443,9 @@ impl World {
         let rx: Vec<u8> = self.rx_scratch.iter().map(|&(_, b)| b).collect();
         self.node_counters[0].bytes_out += rx.len() as u64;
         let tx = self.ground.step(t1, &rx, &mut self.events).to_vec();
+        if let Some(tap) = self.tap.as_mut() {
+            tap.node(0, &self.rx_scratch, &tx, t1);
+        }
         if !tx.is_empty() {
             self.medium.write(self.ground_node, t1, &tx);
             self.node_counters[0].bytes_in += tx.len() as u64;
@@ -482,6 +499,9 @@ impl World {
             }
             if ok {
                 cam.stats.frames += 1;
+                if let Some(tap) = self.tap.as_mut() {
+                    tap.frame(k, capture, &cam.frame, &cam.cams[k].geometry());
+                }
             } else {
                 cam.stats.failed += 1;
             }
@@ -543,10 +563,16 @@ impl World {
                 Ok(n) => {
                     self.medium.write(u.node, now, &buf[..n]);
                     got += n as u64;
+                    if let Some(tap) = self.tap.as_mut() {
+                        tap.node(self.node_counters.len() - 1, &[], &buf[..n], now);
+                    }
                 }
                 Err(e) if e.kind() == ErrorKind::Interrupted => {}
                 Err(_) => break,
             }
+        }
+        if let Some(tap) = self.tap.as_mut() {
+            tap.node(self.node_counters.len() - 1, &out, &[], now);
         }
         let bytes: Vec<u8> = out.iter().map(|&(_, b)| b).collect();
         if !bytes.is_empty() && s.write_all(&bytes).is_err() {

@@ -3,7 +3,7 @@
 //! report, and the camera-follow maneuver's [`Follower`](vision::follow::Follower).
 //!
 //! Console tag 0x09 `Camera`: the request body is one byte, the index of the blob to include
-//! (blobs are largest first); the reply body (28 bytes at most, little-endian) is
+//! (blobs are largest first); the reply body (30 bytes at most, little-endian) is
 //!
 //! | bytes | field |
 //! |---|---|
@@ -13,6 +13,7 @@
 //! | 1 | follow state (`FollowState::code`; 0xFF: none) |
 //! | 2 | leader bearing, mrad (i16, positive left) |
 //! | 2 | leader range, mm (0: not in this frame) |
+//! | 2 | frames processed since boot, modulo 65536 (a reader also takes the 11-byte report without it: 0) |
 //! | 1 | index of the blob below (absent with the blob when the index is past the last) |
 //! | 1 | blob class |
 //! | 3 | blob area, pixels (saturating) |
@@ -28,7 +29,9 @@ use vision::pinhole::{CameraModel, MarkerModel, Observation};
 const MM_PER_UNIT_X2: u32 = 5;
 
 /// Bytes of the report without a blob.
-pub const REPORT_LEN: usize = 11;
+pub const REPORT_LEN: usize = 13;
+/// Bytes of the report without a blob and without the frame count (still read).
+pub const REPORT_LEN_V1: usize = 11;
 /// Bytes of one blob in the report (with its index).
 pub const BLOB_LEN: usize = 17;
 
@@ -82,6 +85,8 @@ pub struct CameraReport {
     pub leader_bearing_mrad: i16,
     /// Range of the leader's marker, mm; 0 when it is not in the frame.
     pub leader_range_mm: u16,
+    /// Frames the vision pipeline processed since boot, modulo 65536.
+    pub frames: u16,
     /// The blob asked for, with its index.
     pub blob: Option<(u8, BlobReport)>,
 }
@@ -109,6 +114,7 @@ impl CameraReport {
         out[6] = self.follow_state;
         out[7..9].copy_from_slice(&self.leader_bearing_mrad.to_le_bytes());
         out[9..11].copy_from_slice(&self.leader_range_mm.to_le_bytes());
+        out[11..13].copy_from_slice(&self.frames.to_le_bytes());
         if let Some((i, b)) = self.blob {
             let o = &mut out[REPORT_LEN..];
             o[0] = i;
@@ -126,12 +132,14 @@ impl CameraReport {
 
     /// Reads a reply body.
     pub fn read(b: &[u8]) -> Result<Self, ReportError> {
-        if b.len() != REPORT_LEN && b.len() != REPORT_LEN + BLOB_LEN {
-            return Err(ReportError::Length { got: b.len() });
-        }
+        let base = match b.len() {
+            n if n == REPORT_LEN || n == REPORT_LEN + BLOB_LEN => REPORT_LEN,
+            n if n == REPORT_LEN_V1 || n == REPORT_LEN_V1 + BLOB_LEN => REPORT_LEN_V1,
+            got => return Err(ReportError::Length { got }),
+        };
         let u16_at = |i: usize| u16::from_le_bytes([b[i], b[i + 1]]);
-        let blob = (b.len() > REPORT_LEN).then(|| {
-            let o = REPORT_LEN;
+        let blob = (b.len() > base).then(|| {
+            let o = base;
             (
                 b[o],
                 BlobReport {
@@ -153,6 +161,7 @@ impl CameraReport {
             follow_state: b[6],
             leader_bearing_mrad: i16::from_le_bytes([b[7], b[8]]),
             leader_range_mm: u16_at(9),
+            frames: if base == REPORT_LEN { u16_at(11) } else { 0 },
             blob,
         })
     }
@@ -164,6 +173,7 @@ pub struct Camera {
     model: CameraModel,
     marker: MarkerModel,
     sequence: u32,
+    frames: u16,
     detections: Detections,
     follower: Option<Follower>,
     leader: Option<Observation>,
@@ -216,6 +226,7 @@ impl Camera {
     /// The detections of frame `sequence`, processed at `now_us`.
     pub fn on_frame(&mut self, now_us: u64, sequence: u32, detections: &Detections) {
         self.sequence = sequence;
+        self.frames = self.frames.wrapping_add(1);
         self.detections = *detections;
         if let Some(f) = self.follower.as_mut() {
             let class = f.target().class;
@@ -277,6 +288,7 @@ impl Camera {
             follow_state,
             leader_bearing_mrad: bearing,
             leader_range_mm: range,
+            frames: self.frames,
             blob: blobs
                 .get(usize::from(index))
                 .map(|b| (index, BlobReport::from(b))),
@@ -327,9 +339,9 @@ mod tests {
         cam.start_follow(2, 200, 300);
         cam.on_frame(1000, 7, &detections());
         let r = cam.report(1);
-        let mut out = [0u8; 30];
+        let mut out = [0u8; 34];
         let n = r.write(&mut out).unwrap();
-        assert_eq!(n, 28);
+        assert_eq!(n, 30);
         let range = r.leader_range_mm.to_le_bytes();
         let expected = [
             7, 0, 0, 0, // sequence
@@ -338,8 +350,9 @@ mod tests {
             1, // tracking
             0, 0, // bearing: straight ahead
             range[0], range[1], // range, checked below
-            1,        // blob index
-            3,        // class
+            1, 0, // frames processed
+            1, // blob index
+            3, // class
             150, 0, 0, // area 5 x 30
             0xD8, 0x07, // cx 502.0 * 4 = 2008
             0x5A, 0x03, // cy 214.5 * 4 = 858
@@ -357,7 +370,7 @@ mod tests {
         );
         assert_eq!(
             r.write(&mut [0u8; 20]),
-            Err(ReportError::BufferTooSmall { needed: 28 })
+            Err(ReportError::BufferTooSmall { needed: 30 })
         );
     }
 
@@ -415,7 +428,7 @@ mod tests {
         ) {
             let r = CameraReport {
                 sequence: seq, blobs, leader_class: class, follow_state: state,
-                leader_bearing_mrad: bearing, leader_range_mm: range,
+                leader_bearing_mrad: bearing, leader_range_mm: range, frames: seq as u16 ^ 0x5555,
                 blob: with_blob.then_some((idx, BlobReport {
                     class, area, cx_q2: f[0], cy_q2: f[1], min_x: f[2], min_y: f[3],
                     max_x: f[4], max_y: f[5],
@@ -424,6 +437,13 @@ mod tests {
             let mut out = [0u8; 32];
             let n = r.write(&mut out).unwrap();
             prop_assert_eq!(CameraReport::read(&out[..n]), Ok(r));
+            // The report of firmware without the frame count still reads, frames = 0.
+            let mut old = [0u8; 28];
+            old[..REPORT_LEN_V1].copy_from_slice(&out[..REPORT_LEN_V1]);
+            let rest = n - REPORT_LEN;
+            old[REPORT_LEN_V1..REPORT_LEN_V1 + rest].copy_from_slice(&out[REPORT_LEN..n]);
+            let back = CameraReport::read(&old[..REPORT_LEN_V1 + rest]).unwrap();
+            prop_assert_eq!(back, CameraReport { frames: 0, ..r });
         }
 
         #[test]
