@@ -5,6 +5,7 @@
 //! own `timestamp`.
 
 use super::schemas;
+use super::spill::Spill;
 use crate::metrics::{ARENA_MM, BODY_OFFSET_MM};
 use crate::plot::colour_of;
 use foxglove::schemas::{
@@ -15,8 +16,6 @@ use foxglove::{
     Channel, ChannelBuilder, Context, McapCompression, McapWriteOptions, McapWriter,
     McapWriterHandle, PartialMetadata, RawChannel, Schema, WebSocketServer, WebSocketServerHandle,
 };
-use std::fs::File;
-use std::io::BufWriter;
 use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
@@ -103,7 +102,8 @@ fn cube(x: f64, y: f64, z: f64, size: Vector3, heading: f64, c: Color) -> CubePr
 /// Every channel of a run.
 pub struct Channels {
     _context: Arc<Context>,
-    mcap: Mutex<Option<McapWriterHandle<BufWriter<File>>>>,
+    mcap: Mutex<Option<McapWriterHandle<Spill>>>,
+    file: Spill,
     live: Mutex<Option<WebSocketServerHandle>>,
     ids: Vec<u8>,
     pose: Vec<Channel<PoseInFrame>>,
@@ -149,14 +149,13 @@ impl Channels {
     ) -> Result<Self, RecordingError> {
         let ctx = Context::new();
         let path = out.join("run.mcap");
-        // A run directory is reused: the previous run's recording goes.
-        let _ = std::fs::remove_file(&path);
+        let file = Spill::create(&path).map_err(|e| RecordingError::File(e.to_string()))?;
         let options = McapWriteOptions::new()
             .compression(Some(McapCompression::Zstd))
             .chunk_size(Some(CHUNK_BYTES));
         let mcap = McapWriter::with_options(options)
             .context(&ctx)
-            .create_new_buffered_file(&path)
+            .create(file.clone())
             .map_err(|e| RecordingError::File(e.to_string()))?;
         let server = match live {
             Some(addr) => Some(
@@ -197,6 +196,7 @@ impl Channels {
             events: typed(&"/events".to_owned()).build(),
             ids: ids.to_vec(),
             mcap: Mutex::new(Some(mcap)),
+            file,
             live: Mutex::new(server),
             _context: ctx,
         })
@@ -364,16 +364,19 @@ impl Channels {
         );
     }
 
-    /// Ends the current chunk and writes everything logged so far to the file, so a run
-    /// killed from now on leaves a readable recording up to here.
+    /// Ends the current chunk and writes everything logged so far to the file, ended so that
+    /// it is a complete MCAP file: a run killed from now on leaves a readable recording up to
+    /// here ([`Spill`]).
     pub fn flush(&self) -> Result<(), String> {
-        match self.mcap.lock() {
-            Ok(g) => match g.as_ref() {
-                Some(h) => h.flush().map_err(|e| e.to_string()),
-                None => Ok(()),
-            },
-            Err(_) => Err("recording lock poisoned".into()),
+        let g = self
+            .mcap
+            .lock()
+            .map_err(|_| "recording lock poisoned".to_owned())?;
+        if let Some(h) = g.as_ref() {
+            h.flush().map_err(|e| e.to_string())?;
+            self.file.commit(true).map_err(|e| e.to_string())?;
         }
+        Ok(())
     }
 
     /// Writes the file's summary and closes it, and stops the live view.
@@ -381,7 +384,10 @@ impl Channels {
         self.stop_live();
         let handle = self.mcap.lock().ok().and_then(|mut g| g.take());
         match handle {
-            Some(h) => h.close().map(|_| ()).map_err(|e| e.to_string()),
+            Some(h) => {
+                let file = h.close().map_err(|e| e.to_string())?;
+                file.commit(false).map_err(|e| e.to_string())
+            }
             None => Ok(()),
         }
     }

@@ -100,11 +100,27 @@ fn frame_json(frame: &Frame) -> Value {
             "counter": counter, "tag": tag, "payload": hex(payload),
         }),
         other => json!({
-            "kind": format!("{:?}", other.kind()).to_lowercase(),
+            "kind": snake_case(&format!("{:?}", other.kind())),
             "src": address(other.src()),
             "detail": format!("{other:?}"),
         }),
     }
+}
+
+/// `GroundBeat` as `ground_beat`.
+fn snake_case(camel: &str) -> String {
+    let mut out = String::new();
+    for (i, c) in camel.chars().enumerate() {
+        if c.is_ascii_uppercase() {
+            if i > 0 {
+                out.push('_');
+            }
+            out.push(c.to_ascii_lowercase());
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// One direction of one radio node's UART.

@@ -23,6 +23,7 @@
 mod channels;
 mod decode;
 mod schemas;
+mod spill;
 
 pub use channels::{Channels, RecordingError, ARENA_FRAME};
 
@@ -205,7 +206,11 @@ impl<'f> Recording<'f> {
         for (k, bytes) in tap.console.iter().enumerate() {
             if let Some(Some(c)) = self.console.get_mut(k) {
                 c.push(bytes, &mut |t, line| {
-                    ch.firmware_log(t, k, line.level, &line.to_string());
+                    let text = match &line.timestamp {
+                        Some(fw) => format!("[{fw}] {}", line.message),
+                        None => line.message.clone(),
+                    };
+                    ch.firmware_log(t, k, line.level, &text);
                 });
             }
         }
