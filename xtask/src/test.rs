@@ -37,6 +37,11 @@ pub fn run(args: TestArgs) -> Result<()> {
     // The soft core's Verilog is compiled by `verilator-tb`'s build script, which every
     // workspace build (clippy and tests) runs.
     install::ensure_verilator()?;
+    // The report test opens a run's report.html in headless Chromium; without it that test
+    // says it was skipped.
+    if let Err(e) = install::ensure_debian_packages(&["chromium"]) {
+        eprintln!("xtask: warning: {e:#}\nxtask: the report's browser test will be skipped");
+    }
     // The sweep test on Slurm (almc/tests/sweep_slurm.rs) starts a one-node cluster; it is
     // skipped, with a message, where these cannot be installed.
     if let Err(e) = install::ensure_debian_packages(&["slurm-wlm", "munge"]) {
