@@ -296,3 +296,23 @@ pub fn print_summary(s: &experiment::Summary, out: &std::path::Path) {
         out.join("run.mcap").display()
     );
 }
+
+#[cfg(test)]
+mod tests {
+    use super::loopback;
+
+    #[test]
+    fn the_live_view_listens_on_loopback_addresses_only() {
+        assert_eq!(loopback("127.0.0.1:8765").unwrap().port(), 8765);
+        assert!(loopback("[::1]:9000").is_ok());
+        for bad in [
+            "0.0.0.0:8765",
+            "192.168.1.2:8765",
+            "[::]:8765",
+            "localhost",
+            "8765",
+        ] {
+            assert!(loopback(bad).is_err(), "{bad}");
+        }
+    }
+}

@@ -13,7 +13,7 @@
 //! | `/arena` | `foxglove.SceneUpdate` | the cars as boxes every 100 ms; the floor and walls every second |
 //! | `/radio/<node>` | `almc.RadioFrame` (JSON) | every radio frame each node's host wrote or received, decoded |
 //! | `/car<ID>/lbc` | `almc.LbcMessage` (JSON) | every message between the car and its LBC, decoded |
-//! | `/car<ID>/log` | `foxglove.Log` | the firmware's log lines (iss engine) |
+//! | `/car<ID>/log` | `foxglove.Log` | the firmware's log lines |
 //! | `/car<ID>/camera` | `foxglove.RawImage` | the car's camera, at most 2 frames a second (with `camera_fps`) |
 //! | `/events` | `foxglove.Log` | the lines of `events.jsonl` |
 //!
@@ -69,6 +69,10 @@ pub struct Recording<'f> {
     lbc: Vec<[LbcStream; 2]>,
     formats: Vec<Option<StreamFormat>>,
     console: Vec<Option<ConsoleStream<'f>>>,
+    /// Lines of the engine's own firmware log already recorded, per car (engines whose
+    /// console bytes the tap does not see: QEMU), and when to look again.
+    lines_seen: Vec<usize>,
+    next_lines: Nanos,
     next_walls: Nanos,
     plots: RunPlots,
 }
@@ -144,6 +148,8 @@ impl<'f> Recording<'f> {
                 .map(|f| f.as_deref().map(ConsoleStream::new))
                 .collect(),
             nodes,
+            lines_seen: vec![0; n],
+            next_lines: 0,
             next_walls: 0,
             plots: RunPlots {
                 title: exp.name.clone(),
@@ -216,6 +222,28 @@ impl<'f> Recording<'f> {
         }
         for f in tap.frames {
             ch.camera(f.at, f.car, f.width, f.height, f.rgb);
+        }
+        self.engine_log_lines(world);
+    }
+
+    /// Cars whose console bytes the tap does not see (QEMU): the new lines of the engine's
+    /// own decoded log, once a second, stamped with the world time they were found.
+    fn engine_log_lines(&mut self, world: &World) {
+        let now = u64::try_from(world.now().as_nanos()).unwrap_or(u64::MAX);
+        if now < self.next_lines || self.console.iter().all(Option::is_some) {
+            return;
+        }
+        self.next_lines = now + WALLS_EVERY_NS;
+        for (k, &id) in self.ids.iter().enumerate() {
+            if self.console.get(k).is_some_and(Option::is_some) {
+                continue;
+            }
+            let lines = world.firmware_log(id).unwrap_or_default();
+            let seen = &mut self.lines_seen[k];
+            for line in lines.iter().skip(*seen) {
+                self.channels.firmware_log(now, k, None, line);
+            }
+            *seen = (*seen).max(lines.len());
         }
     }
 
