@@ -68,7 +68,9 @@ fn loopback(s: &str) -> Result<SocketAddr, String> {
     let addr: SocketAddr = s
         .parse()
         .map_err(|e| format!("`{s}` is not an address with a port (127.0.0.1:8765): {e}"))?;
-    if addr.ip().is_loopback() {
+    if addr.port() == 0 {
+        Err("give the live view a port (127.0.0.1:8765)".into())
+    } else if addr.ip().is_loopback() {
         Ok(addr)
     } else {
         Err(format!(
@@ -311,6 +313,7 @@ mod tests {
             "[::]:8765",
             "localhost",
             "8765",
+            "127.0.0.1:0",
         ] {
             assert!(loopback(bad).is_err(), "{bad}");
         }
