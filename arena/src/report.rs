@@ -64,21 +64,6 @@ fn table(
 
 /// A two-column table of an object's fields (nested objects flattened as `a.b`).
 fn fields(out: &mut String, v: &Value, skip: &[&str]) {
-    fn flatten(prefix: &str, v: &Value, rows: &mut Vec<(String, String)>) {
-        match v {
-            Value::Object(m) => {
-                for (k, x) in m {
-                    let key = if prefix.is_empty() {
-                        k.clone()
-                    } else {
-                        format!("{prefix}.{k}")
-                    };
-                    flatten(&key, x, rows);
-                }
-            }
-            other => rows.push((prefix.to_owned(), cell(other))),
-        }
-    }
     let mut rows = Vec::new();
     if let Value::Object(m) = v {
         for (k, x) in m.iter().filter(|(k, _)| !skip.contains(&k.as_str())) {
@@ -88,6 +73,52 @@ fn fields(out: &mut String, v: &Value, skip: &[&str]) {
     out.push_str("<table class=\"kv\"><tbody>");
     for (k, x) in rows {
         let _ = write!(out, "<tr><th>{}</th><td>{x}</td></tr>", esc(&k));
+    }
+    out.push_str("</tbody></table>\n");
+}
+
+/// `(key, text)` of an object's fields, nested objects flattened as `a.b`.
+fn flatten(prefix: &str, v: &Value, rows: &mut Vec<(String, String)>) {
+    match v {
+        Value::Object(m) => {
+            for (k, x) in m {
+                let key = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                flatten(&key, x, rows);
+            }
+        }
+        other => rows.push((prefix.to_owned(), cell(other))),
+    }
+}
+
+/// The cars' firmware counters (`stats`): one row per counter, one column per car.
+fn counters(out: &mut String, cars: &[Value]) {
+    let per_car: Vec<Vec<(String, String)>> = cars
+        .iter()
+        .map(|c| {
+            let mut rows = Vec::new();
+            flatten("", &c["stats"], &mut rows);
+            rows
+        })
+        .collect();
+    let mut keys: Vec<&String> = per_car.iter().flatten().map(|(k, _)| k).collect();
+    keys.sort();
+    keys.dedup();
+    out.push_str("<table class=\"kv\"><thead><tr><th>counter</th>");
+    for (k, c) in cars.iter().enumerate() {
+        let _ = write!(out, "<th>{} car {}</th>", swatch(k), cell(&c["id"]));
+    }
+    out.push_str("</tr></thead><tbody>");
+    for key in keys {
+        let _ = write!(out, "<tr><th>{}</th>", esc(key));
+        for rows in &per_car {
+            let v = rows.iter().find(|(k, _)| k == key).map_or("-", |(_, v)| v);
+            let _ = write!(out, "<td>{v}</td>");
+        }
+        out.push_str("</tr>");
     }
     out.push_str("</tbody></table>\n");
 }
@@ -248,10 +279,7 @@ pub fn html(summary: &Value, figures: &[Figure]) -> String {
         None,
     );
     s.push_str("<h2>Firmware counters</h2>");
-    for c in &cars {
-        let _ = write!(s, "<h3>car {}</h3>", cell(&c["id"]));
-        fields(&mut s, &c["stats"], &[]);
-    }
+    counters(&mut s, &cars);
     s.push_str(
         "<p>Every value is in <code>summary.json</code>; trajectories in <code>car&lt;ID&gt;.csv</code>; \
          everything the world saw (poses, estimates, radio frames, LBC messages, firmware logs, \
