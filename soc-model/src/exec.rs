@@ -53,6 +53,31 @@ fn misaligned(addr: u32, size: u32) -> bool {
     }
 }
 
+/// Whether the RAM word at aligned address `word` holds any of the 32 bits fetched at `next`.
+pub(crate) fn fetched_word(word: u32, next: u32) -> bool {
+    word == next & !3 || word == next.wrapping_add(2) & !3
+}
+
+/// The 32 bits at halfword offset `off` of RAM.
+pub(crate) fn fetch_ram(ram: &[u32], off: u32) -> u32 {
+    let i = (off >> 2) as usize & (crate::RAM_WORDS - 1);
+    if off & 2 == 0 {
+        ram[i]
+    } else {
+        ram[i] >> 16 | ram[(i + 1) & (crate::RAM_WORDS - 1)] << 16
+    }
+}
+
+/// Drops the decoded instructions (by halfword) that overlap RAM word `i`.
+pub(crate) fn forget_word(ops: &mut [u64], i: usize) {
+    let n = ops.len();
+    for h in [2 * i, 2 * i + 1, (2 * i + n - 1) % n] {
+        if let Some(op) = ops.get_mut(h) {
+            *op = 0;
+        }
+    }
+}
+
 /// DIV/DIVU/REM/REMU (`f3` 4..=7) as the RTL's divider computes them (the ISA's results).
 pub(crate) fn divide(f3: u32, a: u32, b: u32) -> u32 {
     crate::hart::divide(f3, a, b)
@@ -254,16 +279,17 @@ impl Soc {
         }
     }
 
-    /// Writes the lanes `wstrb` of `wdata` at aligned address `addr` in cycle `c`; `pc` is the
-    /// writing instruction's (a store to the next instruction's word is not seen by it).
-    fn store_word(&mut self, c: u64, pc: u32, addr: u32, wstrb: u8, wdata: u32) {
+    /// Writes the lanes `wstrb` of `wdata` at aligned address `addr` in cycle `c`; `next` is
+    /// the address of the instruction after the writing one, whose 32 bits were fetched at the
+    /// same clock edge (a store into them is not seen by it).
+    fn store_word(&mut self, c: u64, next: u32, addr: u32, wstrb: u8, wdata: u32) {
         match target(addr) {
             Target::Ram(i) => {
-                let old = self.ram[i];
-                self.ram[i] = merge(old, wstrb, wdata);
-                self.ops[i] = 0;
-                if addr == pc.wrapping_add(4) {
-                    self.stale = Some(old);
+                let fetched = fetched_word(addr, next).then(|| self.fetch(next));
+                self.ram[i] = merge(self.ram[i], wstrb, wdata);
+                self.forget(i);
+                if fetched.is_some() {
+                    self.stale = fetched;
                 }
             }
             Target::Frame(i) => self.frame[i] = merge(self.frame[i], wstrb, wdata),
@@ -301,14 +327,22 @@ impl Soc {
         }
     }
 
-    /// The instruction word at `pc` (zero outside RAM, which is illegal).
+    /// The 32 bits the fetch stage reads at the halfword address `pc` (zero outside RAM, which
+    /// is illegal): two halfword banks, the upper half from the next word when `pc` is in the
+    /// middle of one (wrapping at the end of RAM as the bank address does).
     pub(crate) fn fetch(&self, pc: u32) -> u32 {
         let off = pc.wrapping_sub(RAM_BASE);
         if off < RAM_SIZE {
-            self.ram[(off >> 2) as usize]
+            fetch_ram(&self.ram, off)
         } else {
             0
         }
+    }
+
+    /// Drops the decoded instructions that overlap RAM word `i`: those starting in it and a
+    /// 32-bit one starting in the upper half of the word before.
+    pub(crate) fn forget(&mut self, i: usize) {
+        forget_word(&mut self.ops, i);
     }
 
     // ------------------------------------------------------------------ counters
@@ -552,11 +586,19 @@ impl Soc {
 
     // ------------------------------------------------------------------ execution
 
-    /// Executes `insn` (the instruction at `pc`) in EXEC cycle `core_at`, with every case the
-    /// RTL has; `until` bounds a WFI's wait.
-    pub(crate) fn exec<const TRACE: bool>(&mut self, insn: u32, until: u64) {
+    /// Executes the instruction at `pc`, of which `fetched` are the 32 bits read there, in EXEC
+    /// cycle `core_at`, with every case the RTL has; `until` bounds a WFI's wait. A compressed
+    /// instruction runs as its 32-bit form; its record shows the 16 bits (so does mtval when
+    /// it is illegal: it then arrives as those 16 bits, whose low bits are not 11).
+    pub(crate) fn exec<const TRACE: bool>(&mut self, fetched: u32, until: u64) {
         let c = self.core_at;
         let pc = self.pc;
+        let (insn, raw, len) = if crate::rvc::is_compressed(fetched) {
+            let lo = fetched & 0xffff;
+            (crate::rvc::expand(lo as u16).unwrap_or(lo), lo, 2)
+        } else {
+            (fetched, fetched, 4)
+        };
         let opcode = insn & 0x7f;
         let rd = (insn >> 7) & 31;
         let f3 = (insn >> 12) & 7;
@@ -567,16 +609,16 @@ impl Soc {
         let b = self.x[rs2];
         let imm_i = (insn as i32 >> 20) as u32;
         let imm_s = (((insn as i32) >> 25) << 5) as u32 | ((insn >> 7) & 0x1f);
-        let next = pc.wrapping_add(4);
+        let next = pc.wrapping_add(len);
         let none = Mem::default();
-        let illegal = |s: &mut Self| s.exception::<TRACE>(c, insn, 2, insn);
+        let illegal = |s: &mut Self| s.exception::<TRACE>(c, raw, 2, raw);
         match opcode {
             0b011_0111 => {
-                self.commit::<TRACE>(c, insn, rd, insn & 0xffff_f000, next, 1, 1, true, none)
+                self.commit::<TRACE>(c, raw, rd, insn & 0xffff_f000, next, 1, 1, true, none)
             }
             0b001_0111 => {
                 let v = pc.wrapping_add(insn & 0xffff_f000);
-                self.commit::<TRACE>(c, insn, rd, v, next, 1, 1, true, none);
+                self.commit::<TRACE>(c, raw, rd, v, next, 1, 1, true, none);
             }
             0b110_1111 => {
                 let imm_j = ((((insn as i32) >> 31) << 20) as u32)
@@ -584,11 +626,11 @@ impl Soc {
                     | (((insn >> 20) & 1) << 11)
                     | (((insn >> 21) & 0x3ff) << 1);
                 let t = pc.wrapping_add(imm_j);
-                self.jump::<TRACE>(c, insn, rd, t);
+                self.jump::<TRACE>(c, raw, rd, t, len);
             }
             0b110_0111 if f3 == 0 => {
                 let sum = a.wrapping_add(imm_i);
-                self.jump::<TRACE>(c, insn, rd, sum & !1);
+                self.jump::<TRACE>(c, raw, rd, sum & !1, len);
             }
             0b110_0011 if f3 != 2 && f3 != 3 => {
                 let taken = match f3 {
@@ -604,15 +646,15 @@ impl Soc {
                         | (((insn >> 7) & 1) << 11)
                         | (((insn >> 25) & 0x3f) << 5)
                         | (((insn >> 8) & 0xf) << 1);
-                    self.jump::<TRACE>(c, insn, 0, pc.wrapping_add(imm_b));
+                    self.jump::<TRACE>(c, raw, 0, pc.wrapping_add(imm_b), len);
                 } else {
-                    self.commit::<TRACE>(c, insn, 0, 0, next, 1, 1, true, none);
+                    self.commit::<TRACE>(c, raw, 0, 0, next, 1, 1, true, none);
                 }
             }
             0b000_0011 if matches!(f3, 0 | 1 | 2 | 4 | 5) => {
                 let addr = a.wrapping_add(imm_i);
                 if misaligned(addr, f3 & 3) {
-                    return self.exception::<TRACE>(c, insn, 4, addr);
+                    return self.exception::<TRACE>(c, raw, 4, addr);
                 }
                 let mask = lane_mask(addr, f3 & 3);
                 let word = self.load_word(c, addr & !3, mask, true);
@@ -630,12 +672,12 @@ impl Soc {
                     rdata: word,
                     ..Mem::default()
                 };
-                self.commit::<TRACE>(c, insn, rd, v, next, 1, 1, true, mem);
+                self.commit::<TRACE>(c, raw, rd, v, next, 1, 1, true, mem);
             }
             0b010_0011 if f3 <= 2 => {
                 let addr = a.wrapping_add(imm_s);
                 if misaligned(addr, f3) {
-                    return self.exception::<TRACE>(c, insn, 6, addr);
+                    return self.exception::<TRACE>(c, raw, 6, addr);
                 }
                 let data = match f3 {
                     0 => (b & 0xff) * 0x0101_0101,
@@ -643,14 +685,14 @@ impl Soc {
                     _ => b,
                 };
                 let mask = lane_mask(addr, f3);
-                self.store_word(c, pc, addr & !3, mask, data);
+                self.store_word(c, next, addr & !3, mask, data);
                 let mem = Mem {
                     addr: addr & !3,
                     wmask: mask,
                     wdata: data,
                     ..Mem::default()
                 };
-                self.commit::<TRACE>(c, insn, 0, 0, next, 1, 1, true, mem);
+                self.commit::<TRACE>(c, raw, 0, 0, next, 1, 1, true, mem);
             }
             0b001_0011 => {
                 let sh = imm_i & 31;
@@ -666,7 +708,7 @@ impl Soc {
                     7 => a & imm_i,
                     _ => return illegal(self),
                 };
-                self.commit::<TRACE>(c, insn, rd, v, next, 1, 1, true, none);
+                self.commit::<TRACE>(c, raw, rd, v, next, 1, 1, true, none);
             }
             0b011_0011 if f7 == 1 => {
                 let (v, cycles) = match f3 {
@@ -679,7 +721,7 @@ impl Soc {
                     3 => (((u64::from(a) * u64::from(b)) >> 32) as u32, 1),
                     _ => (divide(f3, a, b), 34),
                 };
-                self.commit::<TRACE>(c, insn, rd, v, next, cycles, cycles, true, none);
+                self.commit::<TRACE>(c, raw, rd, v, next, cycles, cycles, true, none);
             }
             0b011_0011 => {
                 let sh = b & 31;
@@ -696,21 +738,19 @@ impl Soc {
                     (0, 7) => a & b,
                     _ => return illegal(self),
                 };
-                self.commit::<TRACE>(c, insn, rd, v, next, 1, 1, true, none);
+                self.commit::<TRACE>(c, raw, rd, v, next, 1, 1, true, none);
             }
-            0b000_1111 if f3 == 0 => self.commit::<TRACE>(c, insn, 0, 0, next, 1, 1, true, none),
-            0b111_0011 => self.system::<TRACE>(c, insn, until),
+            0b000_1111 if f3 == 0 => self.commit::<TRACE>(c, raw, 0, 0, next, 1, 1, true, none),
+            0b111_0011 => self.system::<TRACE>(c, insn, raw, until),
             0b010_1111 if f3 == 2 => self.atomic::<TRACE>(c, insn, until),
             _ => illegal(self),
         }
     }
 
-    /// JAL, JALR or a taken branch to `t` (bit 0 already clear); `rd` 0 for branches.
-    fn jump<const TRACE: bool>(&mut self, c: u64, insn: u32, rd: u32, t: u32) {
+    /// JAL, JALR or a taken branch to `t` (bit 0 already clear, so never misaligned with C);
+    /// `rd` 0 for branches; `len` is the instruction's length (the link is `pc + len`).
+    fn jump<const TRACE: bool>(&mut self, c: u64, insn: u32, rd: u32, t: u32, len: u32) {
         let pc = self.pc;
-        if t & 2 != 0 {
-            return self.exception::<TRACE>(c, insn, 0, t);
-        }
         if t == pc && (!self.mstatus_mie || self.mie & self.possible_lines() == 0) {
             self.stuck(StuckReason::SpinWithoutInterrupt);
         }
@@ -718,7 +758,7 @@ impl Soc {
             c,
             insn,
             rd,
-            pc.wrapping_add(4),
+            pc.wrapping_add(len),
             t,
             1,
             1,
@@ -727,17 +767,18 @@ impl Soc {
         );
     }
 
-    fn system<const TRACE: bool>(&mut self, c: u64, insn: u32, until: u64) {
+    /// SYSTEM instructions; `raw` is the instruction as fetched (C.EBREAK's 16 bits).
+    fn system<const TRACE: bool>(&mut self, c: u64, insn: u32, raw: u32, until: u64) {
         let f3 = (insn >> 12) & 7;
         let next = self.pc.wrapping_add(4);
         let none = Mem::default();
         match (f3, insn) {
             (0, 0x0000_0073) => self.exception::<TRACE>(c, insn, 11, 0),
-            (0, 0x0010_0073) => self.exception::<TRACE>(c, insn, 3, 0),
+            (0, 0x0010_0073) => self.exception::<TRACE>(c, raw, 3, 0),
             (0, 0x3020_0073) => {
                 self.mstatus_mie = self.mstatus_mpie;
                 self.mstatus_mpie = true;
-                let t = self.mepc & !3;
+                let t = self.mepc;
                 self.commit::<TRACE>(c, insn, 0, 0, t, 1, 1, true, none);
             }
             (0, WFI) => {
@@ -861,7 +902,7 @@ impl Soc {
                 2
             }
             0x341 => {
-                self.mepc = new & !3;
+                self.mepc = new & !1;
                 2
             }
             0x343 => {
@@ -946,7 +987,7 @@ impl Soc {
                 self.res_valid = false;
                 let mut mem = Mem::default();
                 if ok {
-                    self.store_word(c, self.pc, addr, 0xf, b);
+                    self.store_word(c, self.pc.wrapping_add(4), addr, 0xf, b);
                     mem = Mem {
                         addr,
                         wmask: 0xf,
@@ -997,7 +1038,7 @@ impl Soc {
             _ => old.max(b),
         };
         let again = self.load_word(c, a.addr, 0xf, false);
-        self.store_word(c, a.pc, a.addr, 0xf, new);
+        self.store_word(c, a.pc.wrapping_add(4), a.addr, 0xf, new);
         let mem = Mem {
             addr: a.addr,
             rmask: 0xf,

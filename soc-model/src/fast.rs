@@ -1,23 +1,26 @@
 //! Decoded instructions and the core's straight-line executor.
 //!
-//! Every RAM word has a slot in `Soc::ops` holding its decoded form, packed in a `u32` laid out
-//! like the instruction where it can be: kind (bits 0-5), rd (6-10), rs1 (11-15), rs2 (16-20)
+//! Every RAM halfword (an instruction may start at any) has a slot in `Soc::ops` holding the
+//! decoded form of the instruction starting there, a `u64`: its length in bytes (2 or 4) in
+//! the high word, and in the low word the (expanded, if compressed) instruction laid out like
+//! a 32-bit one where it can be: kind (bits 0-5), rd (6-10), rs1 (11-15), rs2 (16-20)
 //! and the 12-bit I-type immediate in bits 20-31 as in the instruction. Stores and branches
 //! keep rs2 in the rd field (their immediate needs bits 20-31; a branch's is its offset
 //! halved), JAL its offset halved in bits 12-31, LUI and AUIPC the upper immediate as in the
 //! instruction. Writes to x0 are decoded away (a no-op, a jump without link, or the general
 //! path for a load or a division). Zero means "not decoded yet", so the table starts as zeroed
-//! memory and costs nothing until used; a store into a word clears its slot.
+//! memory and costs nothing until used; a store into a word clears the slots of the
+//! instructions that overlap it.
 //!
 //! The executor runs decoded instructions that take a fixed number of cycles and touch only
 //! registers and RAM, up to a deadline (the next cycle at which a device may change, a counter
 //! wraps, or the run ends). Anything else (CSRs, system instructions, atomics, device or
-//! misaligned accesses, jumps to misaligned targets or to themselves) goes to the general
+//! misaligned accesses, illegal compressed encodings, jumps to themselves) goes to the general
 //! path in `exec.rs`, which also covers every instruction the executor runs.
 
-use crate::exec::divide;
+use crate::exec::{divide, fetch_ram, fetched_word};
 use crate::hart::Retire;
-use crate::{Retired, Soc, RAM_BASE, RAM_SIZE, RAM_WORDS};
+use crate::{Retired, Soc, RAM_BASE, RAM_HALVES, RAM_SIZE, RAM_WORDS};
 
 pub(crate) mod k {
     pub const SLOW: u32 = 1;
@@ -73,7 +76,17 @@ pub(crate) mod k {
 
 const SLOW: u32 = k::SLOW;
 
-/// Decodes the word `insn` found at `pc`.
+/// Decodes the instruction whose 32 bits fetched at `pc` are `fetched` (the slot's `u64`).
+pub(crate) fn decode_at(fetched: u32, pc: u32) -> u64 {
+    if crate::rvc::is_compressed(fetched) {
+        let op = crate::rvc::expand(fetched as u16).map_or(SLOW, |x| decode(x, pc));
+        2 << 32 | u64::from(op)
+    } else {
+        4 << 32 | u64::from(decode(fetched, pc))
+    }
+}
+
+/// Decodes the 32-bit instruction `insn` found at `pc`.
 pub(crate) fn decode(insn: u32, pc: u32) -> u32 {
     let opcode = insn & 0x7f;
     let rd = (insn >> 7) & 31;
@@ -95,7 +108,7 @@ pub(crate) fn decode(insn: u32, pc: u32) -> u32 {
                 | (((insn >> 20) & 1) << 11)
                 | (((insn >> 21) & 0x3ff) << 1);
             let t = pc.wrapping_add(imm_j);
-            if t & 3 != 0 || t == pc {
+            if t == pc {
                 return SLOW;
             }
             let kind = if rd == 0 { k::J } else { k::JAL };
@@ -108,7 +121,7 @@ pub(crate) fn decode(insn: u32, pc: u32) -> u32 {
                 | (((insn >> 25) & 0x3f) << 5)
                 | (((insn >> 8) & 0xf) << 1);
             let t = pc.wrapping_add(imm_b);
-            if t & 3 != 0 || t == pc {
+            if t == pc {
                 return SLOW;
             }
             let kind = match f3 {
@@ -283,7 +296,7 @@ impl Soc {
             ..
         } = self;
         let (Ok(ops), Ok(ram)) = (
-            <&mut [u32; RAM_WORDS]>::try_from(&mut ops[..]),
+            <&mut [u64; RAM_HALVES]>::try_from(&mut ops[..]),
             <&mut [u32; RAM_WORDS]>::try_from(&mut ram[..]),
         ) else {
             return Burst::Slow;
@@ -296,15 +309,16 @@ impl Soc {
             if off >= RAM_SIZE {
                 break Burst::Slow;
             }
-            let idx = (off >> 2) as usize & (RAM_WORDS - 1);
+            let idx = (off >> 1) as usize & (RAM_HALVES - 1);
             let op0 = ops[idx];
-            let op = if op0 == 0 {
-                let d = decode(ram[idx], pc);
+            let op64 = if op0 == 0 {
+                let d = decode_at(fetch_ram(&ram[..], off), pc);
                 ops[idx] = d;
                 d
             } else {
                 op0
             };
+            let op = op64 as u32;
             let kind = op & 63;
             let rd = ((op >> 6) & 31) as usize;
             let rs1 = ((op >> 11) & 31) as usize;
@@ -312,10 +326,19 @@ impl Soc {
             let imm = ((op as i32) >> 20) as u32;
             let a = x[rs1];
             let b = x[rs2];
-            let mut next = pc.wrapping_add(4);
+            let mut next = pc.wrapping_add((op64 >> 32) as u32);
             let mut cycles = 1;
             let mut mem = crate::exec::Mem::default();
-            let insn = if TRACE { ram[idx] } else { 0 };
+            let insn = if TRACE {
+                let f = fetch_ram(&ram[..], off);
+                if op64 >> 32 == 2 {
+                    f & 0xffff
+                } else {
+                    f
+                }
+            } else {
+                0
+            };
             // a load of `lanes` (size mask `sm`), the value from the shifted word `v` and word `w`
             macro_rules! load {
                 ($sm:expr, $lanes:expr, $v:ident, $w:ident => $ext:expr) => {{
@@ -358,14 +381,19 @@ impl Soc {
                             m
                         }
                     }) << (8 * (addr & 3));
+                    // the next instruction was fetched before this write
+                    let hit = fetched_word(addr & !3, next);
+                    if hit {
+                        *stale = Some(fetch_ram(&ram[..], next.wrapping_sub(RAM_BASE)));
+                        deadline = 0;
+                    }
                     ram[i] = (old & !m) | (data & m);
-                    if ops[i] != 0 || i == idx + 1 {
-                        ops[i] = 0;
-                        if i == idx + 1 {
-                            // the next instruction was fetched before this write
-                            *stale = Some(old);
-                            deadline = 0;
-                        }
+                    let h = 2 * i;
+                    let hp = h.wrapping_sub(1) & (RAM_HALVES - 1);
+                    if ops[h] | ops[h + 1] | ops[hp] != 0 {
+                        ops[h] = 0;
+                        ops[h + 1] = 0;
+                        ops[hp] = 0;
                     }
                     if TRACE {
                         mem.addr = addr & !3;
@@ -413,10 +441,6 @@ impl Soc {
                 k::J => next = pc.wrapping_add((((op as i32) >> 12) << 1) as u32),
                 k::JALR | k::JR => {
                     let t = a.wrapping_add(imm) & !1;
-                    if t & 2 != 0 {
-                        // misaligned target: the general path raises the exception
-                        break Burst::Slow;
-                    }
                     if kind == k::JALR {
                         x[rd] = next;
                     }
@@ -477,11 +501,7 @@ impl Soc {
                         | k::SW
                         | k::NOP
                 );
-                let rd_addr = if writes_rd {
-                    ((insn >> 7) & 31) as u8
-                } else {
-                    0
-                };
+                let rd_addr = if writes_rd { rd as u8 } else { 0 };
                 let r = Retire {
                     order: *retired + (instret - start) + 1,
                     insn,

@@ -1,4 +1,4 @@
-//! Golden RV32IMA + Zicsr machine-mode instruction-set model: the reference the RTL core is
+//! Golden RV32IMAC + Zicsr machine-mode instruction-set model: the reference the RTL core is
 //! checked against, one retired instruction at a time. It follows the privileged spec's
 //! choices the core makes (documented in docs/soft-core.md): direct or vectored mtvec (a
 //! vectored table is 64-byte aligned), mtval is zero for EBREAK,
@@ -52,8 +52,8 @@ pub mod cause {
     pub const M_EXTERNAL: u32 = INTERRUPT | 11;
 }
 
-/// `misa` of the core: RV32 with A, I, M.
-pub const MISA: u32 = 0x4000_1101;
+/// `misa` of the core: RV32 with A, C, I, M.
+pub const MISA: u32 = 0x4000_1105;
 /// Writable bits of `mie`: MSIE, MTIE, MEIE.
 const MIE_MASK: u32 = 0x888;
 
@@ -183,7 +183,7 @@ impl Hart {
             // mode 1 (vectored) needs a 64-byte aligned table: entry = base | cause << 2
             0x305 => self.mtvec = if v & 1 != 0 { v & !0x3e } else { v & !2 },
             0x340 => self.mscratch = v,
-            0x341 => self.mepc = v & !3,
+            0x341 => self.mepc = v & !1,
             // WLRL: only the interrupt bit and a 4-bit code are kept
             0x342 => self.mcause = v & 0x8000_000f,
             0x343 => self.mtval = v,
@@ -196,11 +196,21 @@ impl Hart {
     }
 
     /// Executes the instruction at `pc` (fetched from `bus`) and returns its retirement record.
-    pub fn step(&mut self, bus: &mut impl Bus) -> Retire {
+    pub fn step<B: Bus>(&mut self, bus: &mut B) -> Retire {
         let pc = self.pc;
-        let insn = if pc & 3 == 0 { bus.load(pc) } else { 0 };
+        // the 16 bits at pc, and the next 16 unless they start a compressed instruction
+        let half = |bus: &mut B, a: u32| (bus.load(a & !3) >> ((a & 2) * 8)) & 0xffff;
+        let lo = half(bus, pc);
+        let (raw, insn, len) = if crate::rvc::is_compressed(lo) {
+            // an illegal one runs as its 16 bits, whose low bits make it illegal
+            let x = crate::rvc::expand(lo as u16).unwrap_or(lo);
+            (lo, x, 2)
+        } else {
+            let w = lo | half(bus, pc.wrapping_add(2)) << 16;
+            (w, w, 4)
+        };
         let mut rec = Retire {
-            insn,
+            insn: raw,
             pc_rdata: pc,
             ..Retire::default()
         };
@@ -208,7 +218,7 @@ impl Hart {
         rec.order = self.order;
         let mut rd_val: Option<u32> = None;
         self.pending_csr = None;
-        let outcome = self.execute(insn, bus, &mut rec, &mut rd_val);
+        let outcome = self.execute(insn, len, bus, &mut rec, &mut rd_val);
         match outcome {
             Outcome::Trap(c, tval) => {
                 self.mepc = pc;
@@ -219,7 +229,7 @@ impl Hart {
                 self.pc = self.mtvec & !3;
                 rec = Retire {
                     order: rec.order,
-                    insn,
+                    insn: raw,
                     trap: true,
                     pc_rdata: pc,
                     pc_wdata: self.pc,
@@ -229,7 +239,7 @@ impl Hart {
             Outcome::Next | Outcome::Jump(_) => {
                 let next = match outcome {
                     Outcome::Jump(t) => t,
-                    _ => pc.wrapping_add(4),
+                    _ => pc.wrapping_add(len),
                 };
                 let rd = ((insn >> 7) & 31) as u8;
                 if let (Some(v), true) = (rd_val, rd != 0) {
@@ -252,6 +262,7 @@ impl Hart {
     fn execute(
         &mut self,
         insn: u32,
+        len: u32,
         bus: &mut impl Bus,
         rec: &mut Retire,
         rd_val: &mut Option<u32>,
@@ -278,27 +289,22 @@ impl Hart {
             | (insn & 0x000f_f000)
             | (((insn >> 20) & 1) << 11)
             | (((insn >> 21) & 0x3ff) << 1);
-        let jump_to = |t: u32| {
-            if t & 3 != 0 {
-                Outcome::Trap(cause::MISALIGNED_FETCH, t)
-            } else {
-                Outcome::Jump(t)
-            }
-        };
+        // with C every target is a halfword address: no misaligned-fetch exception
+        let jump_to = Outcome::Jump;
         match opcode {
             0b011_0111 => *rd_val = Some(insn & 0xffff_f000),
             0b001_0111 => *rd_val = Some(pc.wrapping_add(insn & 0xffff_f000)),
             0b110_1111 => {
                 let o = jump_to(pc.wrapping_add(imm_j));
                 if matches!(o, Outcome::Jump(_)) {
-                    *rd_val = Some(pc.wrapping_add(4));
+                    *rd_val = Some(pc.wrapping_add(len));
                 }
                 return o;
             }
             0b110_0111 if f3 == 0 => {
                 let o = jump_to(a.wrapping_add(imm_i) & !1);
                 if matches!(o, Outcome::Jump(_)) {
-                    *rd_val = Some(pc.wrapping_add(4));
+                    *rd_val = Some(pc.wrapping_add(len));
                 }
                 return o;
             }
@@ -642,20 +648,39 @@ mod tests {
 
         #[test]
         fn branch_and_jal_offsets_round_trip(half in -2048i32..2048, rd in 1u8..32) {
+            // with C a halfword target is aligned: no misaligned-fetch exception
             let off = half * 2;
             let (_, recs) = run(&[isa::beq(0, 0, off)], |_| {});
-            let target = BASE.wrapping_add(off as u32);
-            if target.is_multiple_of(4) {
-                prop_assert_eq!(recs[0].pc_wdata, target);
-            } else {
-                prop_assert!(recs[0].trap);
-            }
+            prop_assert!(!recs[0].trap);
+            prop_assert_eq!(recs[0].pc_wdata, BASE.wrapping_add(off as u32));
             let joff = half * 512;
             let (h, recs) = run(&[isa::jal(rd, joff)], |_| {});
-            let target = BASE.wrapping_add(joff as u32);
-            if target.is_multiple_of(4) {
-                prop_assert_eq!(recs[0].pc_wdata, target);
-                prop_assert_eq!(h.x[rd as usize], BASE + 4);
+            prop_assert_eq!(recs[0].pc_wdata, BASE.wrapping_add(joff as u32));
+            prop_assert_eq!(h.x[rd as usize], BASE + 4);
+        }
+
+        #[test]
+        fn compressed_instructions_advance_by_two(rd in 1u8..32, imm in -32i32..32, v: u32) {
+            // c.addi rd, imm; c.jal +4 (links pc + 2 + 2); a 32-bit addi at a halfword address
+            let w0 = u32::from(isa::c::addi(rd, imm)) | u32::from(isa::c::jal(4)) << 16;
+            let w1 = u32::from(isa::c::NOP) | (isa::addi(rd, rd, 1) & 0xffff) << 16;
+            let w2 = isa::addi(rd, rd, 1) >> 16;
+            let mut ram = Ram(vec![0; 64]);
+            ram.0[..3].copy_from_slice(&[w0, w1, w2]);
+            let mut h = Hart::new(BASE);
+            h.x[rd as usize] = v;
+            let r0 = h.step(&mut ram);
+            prop_assert_eq!((r0.insn, r0.pc_wdata), (w0 & 0xffff, BASE + 2));
+            let r1 = h.step(&mut ram);
+            prop_assert_eq!(r1.pc_wdata, BASE + 6);
+            let r2 = h.step(&mut ram);
+            prop_assert_eq!((r2.pc_rdata, r2.pc_wdata), (BASE + 6, BASE + 10));
+            prop_assert_eq!(r2.insn, isa::addi(rd, rd, 1));
+            if rd == 1 {
+                prop_assert_eq!(h.x[1], BASE + 5);
+            } else {
+                prop_assert_eq!(h.x[rd as usize], v.wrapping_add(imm as u32).wrapping_add(1));
+                prop_assert_eq!(h.x[1], BASE + 4);
             }
         }
 

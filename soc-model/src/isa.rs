@@ -1,4 +1,4 @@
-//! RV32IMA + Zicsr instruction encoders, so tests and tools can build programs without an
+//! RV32IMAC + Zicsr instruction encoders, so tests and tools can build programs without an
 //! assembler. Register operands are `u8` numbers 0..=31; immediates are taken modulo their
 //! field width (callers keep them in range).
 
@@ -16,6 +16,8 @@ pub mod reg {
     pub const A1: u8 = 11;
     pub const A2: u8 = 12;
     pub const A3: u8 = 13;
+    pub const A4: u8 = 14;
+    pub const A5: u8 = 15;
 }
 
 /// CSR numbers implemented by the core.
@@ -279,4 +281,322 @@ pub fn li(rd: u8, value: u32) -> [u32; 2] {
     let lo = ((value & 0xfff) as i32) << 20 >> 20;
     let hi = value.wrapping_sub(lo as u32) >> 12;
     [lui(rd, hi), addi(rd, rd, lo)]
+}
+
+/// RV32C encoders (16-bit instructions). `p`/`q` registers must be x8..=x15 (the 3-bit
+/// fields); offsets and immediates must be in range and aligned as the instruction needs.
+pub mod c {
+    fn rp(r: u8) -> u16 {
+        u16::from(r.wrapping_sub(8) & 7)
+    }
+    fn ci(f3: u16, rd: u8, imm6: i32, op: u16) -> u16 {
+        let i = imm6 as u16;
+        f3 << 13 | ((i >> 5) & 1) << 12 | u16::from(rd & 31) << 7 | (i & 31) << 2 | op
+    }
+    fn cr(f4: u16, rd: u8, rs2: u8) -> u16 {
+        f4 << 12 | u16::from(rd & 31) << 7 | u16::from(rs2 & 31) << 2 | 2
+    }
+    fn ca(f2: u16, p: u8, q: u8) -> u16 {
+        0b10_0011 << 10 | rp(p) << 7 | f2 << 5 | rp(q) << 2 | 1
+    }
+    fn cj(f3: u16, off: i32) -> u16 {
+        let o = off as u16;
+        let b = |n: u16| (o >> n) & 1;
+        f3 << 13
+            | b(11) << 12
+            | b(4) << 11
+            | ((o >> 8) & 3) << 9
+            | b(10) << 8
+            | b(6) << 7
+            | b(7) << 6
+            | ((o >> 1) & 7) << 3
+            | b(5) << 2
+            | 1
+    }
+    fn cb(f3: u16, p: u8, off: i32) -> u16 {
+        let o = off as u16;
+        let b = |n: u16| (o >> n) & 1;
+        f3 << 13
+            | b(8) << 12
+            | ((o >> 3) & 3) << 10
+            | rp(p) << 7
+            | ((o >> 6) & 3) << 5
+            | ((o >> 1) & 3) << 3
+            | b(5) << 2
+            | 1
+    }
+    fn mem(f3: u16, p: u8, q: u8, uimm: u32) -> u16 {
+        let u = uimm as u16;
+        f3 << 13
+            | ((u >> 3) & 7) << 10
+            | rp(q) << 7
+            | ((u >> 2) & 1) << 6
+            | ((u >> 6) & 1) << 5
+            | rp(p) << 2
+    }
+
+    /// C.ADDI4SPN: p = sp + uimm (uimm a nonzero multiple of 4 below 1024).
+    pub fn addi4spn(p: u8, uimm: u32) -> u16 {
+        let u = uimm as u16;
+        ((u >> 4) & 3) << 11
+            | ((u >> 6) & 15) << 7
+            | ((u >> 2) & 1) << 6
+            | ((u >> 3) & 1) << 5
+            | rp(p) << 2
+    }
+    /// C.LW: p = mem[q + uimm] (uimm a multiple of 4 below 128).
+    pub fn lw(p: u8, q: u8, uimm: u32) -> u16 {
+        mem(0b010, p, q, uimm)
+    }
+    /// C.SW: mem[q + uimm] = p.
+    pub fn sw(p: u8, q: u8, uimm: u32) -> u16 {
+        mem(0b110, p, q, uimm)
+    }
+    /// C.NOP.
+    pub const NOP: u16 = 0x0001;
+    /// C.EBREAK.
+    pub const EBREAK: u16 = 0x9002;
+    /// C.ADDI: rd += imm6 (-32..32).
+    pub fn addi(rd: u8, imm6: i32) -> u16 {
+        ci(0b000, rd, imm6, 1)
+    }
+    /// C.JAL: ra = pc + 2; pc += off (even, -2048..2048).
+    pub fn jal(off: i32) -> u16 {
+        cj(0b001, off)
+    }
+    /// C.LI: rd = imm6.
+    pub fn li(rd: u8, imm6: i32) -> u16 {
+        ci(0b010, rd, imm6, 1)
+    }
+    /// C.ADDI16SP: sp += imm (a nonzero multiple of 16, -512..512).
+    pub fn addi16sp(imm: i32) -> u16 {
+        let i = imm as u16;
+        let b = |n: u16| (i >> n) & 1;
+        0b011 << 13
+            | b(9) << 12
+            | 2 << 7
+            | b(4) << 6
+            | b(6) << 5
+            | ((i >> 7) & 3) << 3
+            | b(5) << 2
+            | 1
+    }
+    /// C.LUI: rd = imm6 << 12 (imm6 nonzero, rd not sp).
+    pub fn lui(rd: u8, imm6: i32) -> u16 {
+        ci(0b011, rd, imm6, 1)
+    }
+    /// C.SRLI: p >>= sh (1..32).
+    pub fn srli(p: u8, sh: u8) -> u16 {
+        0b100 << 13 | rp(p) << 7 | u16::from(sh & 31) << 2 | 1
+    }
+    /// C.SRAI: p >>= sh, arithmetic.
+    pub fn srai(p: u8, sh: u8) -> u16 {
+        0b100 << 13 | 1 << 10 | rp(p) << 7 | u16::from(sh & 31) << 2 | 1
+    }
+    /// C.ANDI: p &= imm6.
+    pub fn andi(p: u8, imm6: i32) -> u16 {
+        let i = imm6 as u16;
+        0b100 << 13 | ((i >> 5) & 1) << 12 | 2 << 10 | rp(p) << 7 | (i & 31) << 2 | 1
+    }
+    /// C.SUB: p -= q.
+    pub fn sub(p: u8, q: u8) -> u16 {
+        ca(0, p, q)
+    }
+    /// C.XOR: p ^= q.
+    pub fn xor(p: u8, q: u8) -> u16 {
+        ca(1, p, q)
+    }
+    /// C.OR: p |= q.
+    pub fn or(p: u8, q: u8) -> u16 {
+        ca(2, p, q)
+    }
+    /// C.AND: p &= q.
+    pub fn and(p: u8, q: u8) -> u16 {
+        ca(3, p, q)
+    }
+    /// C.J: pc += off.
+    pub fn j(off: i32) -> u16 {
+        cj(0b101, off)
+    }
+    /// C.BEQZ: branch by off (even, -256..256) when p == 0.
+    pub fn beqz(p: u8, off: i32) -> u16 {
+        cb(0b110, p, off)
+    }
+    /// C.BNEZ: branch when p != 0.
+    pub fn bnez(p: u8, off: i32) -> u16 {
+        cb(0b111, p, off)
+    }
+    /// C.SLLI: rd <<= sh (1..32).
+    pub fn slli(rd: u8, sh: u8) -> u16 {
+        u16::from(rd & 31) << 7 | u16::from(sh & 31) << 2 | 2
+    }
+    /// C.LWSP: rd = mem[sp + uimm] (uimm a multiple of 4 below 256, rd not x0).
+    pub fn lwsp(rd: u8, uimm: u32) -> u16 {
+        let u = uimm as u16;
+        0b010 << 13
+            | ((u >> 5) & 1) << 12
+            | u16::from(rd & 31) << 7
+            | ((u >> 2) & 7) << 4
+            | ((u >> 6) & 3) << 2
+            | 2
+    }
+    /// C.SWSP: mem[sp + uimm] = rs2.
+    pub fn swsp(rs2: u8, uimm: u32) -> u16 {
+        let u = uimm as u16;
+        0b110 << 13 | ((u >> 2) & 15) << 9 | ((u >> 6) & 3) << 7 | u16::from(rs2 & 31) << 2 | 2
+    }
+    /// C.JR: pc = rs1 (not x0).
+    pub fn jr(rs1: u8) -> u16 {
+        cr(0b1000, rs1, 0)
+    }
+    /// C.MV: rd = rs2 (rs2 not x0).
+    pub fn mv(rd: u8, rs2: u8) -> u16 {
+        cr(0b1000, rd, rs2)
+    }
+    /// C.JALR: ra = pc + 2; pc = rs1 (not x0).
+    pub fn jalr(rs1: u8) -> u16 {
+        cr(0b1001, rs1, 0)
+    }
+    /// C.ADD: rd += rs2 (rs2 not x0).
+    pub fn add(rd: u8, rs2: u8) -> u16 {
+        cr(0b1001, rd, rs2)
+    }
+}
+
+/// Random RV32C words for random instruction streams (tests of the RTL and the models).
+pub mod c_random {
+    use super::c;
+
+    /// Two random compressed instructions packed in one word (the first in the low half):
+    /// ALU forms and HINTs (writes to x0), loads and stores through x8 and sp (which must hold
+    /// word-aligned data addresses with 256 bytes of room), a C.ADDI16SP pair that leaves sp
+    /// as it was, C.EBREAK, and reserved or foreign encodings (illegal). Registers written are
+    /// those `free` accepts (or x0); `g` gives random words.
+    pub fn pair(g: &mut dyn FnMut() -> u32, free: &dyn Fn(u8) -> bool) -> u32 {
+        if g().is_multiple_of(16) {
+            let k = ((g() % 31) as i32 - 15) * 16;
+            let k = if k == 0 { 16 } else { k };
+            return u32::from(c::addi16sp(k)) | u32::from(c::addi16sp(-k)) << 16;
+        }
+        u32::from(one(g, free)) | u32::from(one(g, free)) << 16
+    }
+
+    fn one(g: &mut dyn FnMut() -> u32, free: &dyn Fn(u8) -> bool) -> u16 {
+        let reg = |g: &mut dyn FnMut() -> u32, full: bool| loop {
+            let r = if full {
+                (g() % 32) as u8
+            } else {
+                8 + (g() % 8) as u8
+            };
+            if r == 0 || free(r) {
+                break r;
+            }
+        };
+        let imm6 = |g: &mut dyn FnMut() -> u32| (g() % 64) as i32 - 32;
+        let sh = |g: &mut dyn FnMut() -> u32| 1 + (g() % 31) as u8;
+        let any = |g: &mut dyn FnMut() -> u32| (g() % 32) as u8;
+        let anyp = |g: &mut dyn FnMut() -> u32| 8 + (g() % 8) as u8;
+        match g() % 24 {
+            0 => c::addi(reg(g, true), imm6(g)),
+            1 => c::li(reg(g, true), imm6(g)),
+            2 => {
+                let r = loop {
+                    let r = reg(g, true);
+                    if r != 2 {
+                        break r;
+                    }
+                };
+                let i = imm6(g);
+                c::lui(r, if i == 0 { 1 } else { i })
+            }
+            3 => {
+                let r = reg(g, false);
+                if r == 0 {
+                    return c::NOP;
+                }
+                match g() % 3 {
+                    0 => c::srli(r, sh(g)),
+                    1 => c::srai(r, sh(g)),
+                    _ => c::andi(r, imm6(g)),
+                }
+            }
+            4 | 5 => {
+                let r = reg(g, false);
+                if r == 0 {
+                    return c::NOP;
+                }
+                let q = anyp(g);
+                match g() % 4 {
+                    0 => c::sub(r, q),
+                    1 => c::xor(r, q),
+                    2 => c::or(r, q),
+                    _ => c::and(r, q),
+                }
+            }
+            6 => c::slli(reg(g, true), sh(g)),
+            7 | 8 => {
+                let s = loop {
+                    let s = any(g);
+                    if s != 0 {
+                        break s;
+                    }
+                };
+                if g().is_multiple_of(2) {
+                    c::mv(reg(g, true), s)
+                } else {
+                    c::add(reg(g, true), s)
+                }
+            }
+            9 => {
+                let r = reg(g, false);
+                if r == 0 {
+                    return c::NOP;
+                }
+                c::addi4spn(r, 4 * (1 + g() % 255))
+            }
+            10 | 11 => {
+                let r = reg(g, false);
+                if r == 0 {
+                    return c::NOP;
+                }
+                c::lw(r, 8, 4 * (g() % 32))
+            }
+            12 | 13 => c::sw(anyp(g), 8, 4 * (g() % 32)),
+            14 | 15 => {
+                let r = reg(g, true);
+                if r == 0 {
+                    return c::NOP;
+                }
+                c::lwsp(r, 4 * (g() % 64))
+            }
+            16 | 17 => c::swsp(any(g), 4 * (g() % 64)),
+            18 => c::NOP,
+            19 => c::EBREAK,
+            20 | 21 => {
+                // reserved or foreign encodings: illegal
+                let junk = g() as u16;
+                [
+                    0x0000,
+                    0x2000 | (junk & 0x1ffc),        // C.FLD
+                    0x6000 | (junk & 0x1ffc),        // C.FLW
+                    0x8000 | (junk & 0x1ffc),        // reserved
+                    0x4002 | (junk & 0x107c),        // C.LWSP x0
+                    0x8002,                          // C.JR x0
+                    0x6101,                          // C.ADDI16SP 0
+                    0x1002 | (junk & 0x0ffc),        // C.SLLI by 32+
+                    0x9c01 | (junk & 0x039c) | 0x20, // C.SUBW/C.ADDW/reserved
+                    0xa002 | (junk & 0x1ffc),        // C.FSDSP
+                ][(g() % 10) as usize]
+            }
+            _ => {
+                // HINTs: writes to x0
+                match g() % 4 {
+                    0 => c::li(0, imm6(g)),
+                    1 => c::mv(0, 1 + (g() % 31) as u8),
+                    2 => c::slli(0, sh(g)),
+                    _ => c::addi(0, 1 + (g() % 31) as i32),
+                }
+            }
+        }
+    }
 }

@@ -1,4 +1,4 @@
-//! Cycle-accurate instruction-set model of the softcore SoC (`verilator-tb/rtl/`): the RV32IMA +
+//! Cycle-accurate instruction-set model of the softcore SoC (`verilator-tb/rtl/`): the RV32IMAC +
 //! Zicsr core with its exact cycle costs (two-cycle CSR writes to register-file CSRs, AMOs and
 //! trap entry, the 34-cycle divider, the counter-carry cycles), 1 MiB of RAM, the frame-grabber
 //! window, two 16550 UARTs, the CLINT, the PLIC and the simulation-control device, in one
@@ -9,14 +9,15 @@
 //! sleep cycles, retired instructions) are the same. `docs/soc-model.md` lists what is
 //! modelled, the cycle table and the measured speed.
 //!
-//! Speed comes from three things: instructions are decoded once per RAM word (the decoded form
-//! is dropped when the word is written); devices are not ticked but compute their state from
+//! Speed comes from three things: instructions are decoded once per RAM halfword where they
+//! start (compressed ones expanded then; the decoded form is dropped when a word it overlaps is
+//! written); devices are not ticked but compute their state from
 //! cycle numbers, so the core runs straight until the next cycle at which something can change
 //! (a byte finishing, a timer match, a counter carry, `until`); and a core waiting in WFI jumps
 //! straight to that cycle, with the counter carries in between accounted arithmetically.
 //!
 //! [`hart`] is the plain reference model (architectural state only) the RTL's lockstep checker
-//! uses; [`isa`] has instruction encoders for tests.
+//! uses; [`isa`] has instruction encoders for tests; [`rvc`] expands compressed instructions.
 #![forbid(unsafe_code)]
 
 mod dev;
@@ -25,6 +26,7 @@ mod exec;
 mod fast;
 pub mod hart;
 pub mod isa;
+pub mod rvc;
 #[cfg(test)]
 mod tests;
 
@@ -225,6 +227,7 @@ pub(crate) mod pend {
 }
 
 pub(crate) const RAM_WORDS: usize = (RAM_SIZE / 4) as usize;
+pub(crate) const RAM_HALVES: usize = (RAM_SIZE / 2) as usize;
 pub(crate) const FRAME_WORDS: usize = FRAME_WINDOW_LEN / 4;
 
 /// The second cycle of an AMO whose target is not RAM, when its first cycle was the last one
@@ -285,8 +288,8 @@ pub struct Soc {
 
     // ---- memories
     pub(crate) ram: Vec<u32>,
-    /// Decoded instructions by RAM word (0: not decoded); see `fast`.
-    pub(crate) ops: Vec<u32>,
+    /// Decoded instructions by RAM halfword (0: not decoded); see `fast`.
+    pub(crate) ops: Vec<u64>,
     pub(crate) frame: Vec<u32>,
 
     // ---- devices
@@ -367,7 +370,7 @@ impl Soc {
             stale: None,
             amo_ex2: None,
             ram: vec![0; RAM_WORDS],
-            ops: vec![0; RAM_WORDS],
+            ops: vec![0; RAM_HALVES],
             frame: vec![0; FRAME_WORDS],
             clint: Clint::new(),
             plic: Plic::default(),
@@ -418,7 +421,7 @@ impl Soc {
         let first = (off / 4) as usize;
         for (k, w) in words.iter().enumerate() {
             self.ram[first + k] = *w;
-            self.ops[first + k] = 0;
+            self.forget(first + k);
         }
         Ok(())
     }
@@ -427,9 +430,9 @@ impl Soc {
         for (k, b) in data.iter().enumerate() {
             let a = off + k;
             let (i, sh) = (a / 4, (a % 4) * 8);
-            if let (Some(w), Some(op)) = (self.ram.get_mut(i), self.ops.get_mut(i)) {
+            if let Some(w) = self.ram.get_mut(i) {
                 *w = (*w & !(0xff << sh)) | u32::from(*b) << sh;
-                *op = 0;
+                self.forget(i);
             }
         }
     }

@@ -556,15 +556,17 @@ impl Bus for Ram {
     }
 }
 
-/// Registers the random streams do not write: the data pointer and the handler's.
+/// Registers the random streams do not write: the data pointers and the handler's.
 const DATA: u8 = 8;
 const AMO: u8 = 9;
+const SP_DATA: u8 = 2;
+const SCRATCH: u8 = 29;
 const LINK: u8 = 30;
 const HANDLER: u8 = 31;
 
 fn free_reg(r: u8) -> u8 {
     match r {
-        DATA | AMO | LINK | HANDLER => 5,
+        DATA | AMO | SP_DATA | SCRATCH | LINK | HANDLER => 5,
         r => r,
     }
 }
@@ -580,7 +582,7 @@ fn random_insn(
     let r = |g: &mut dyn FnMut() -> u32| free_reg((g() % 32) as u8);
     let s = |g: &mut dyn FnMut() -> u32| (g() % 32) as u8;
     let imm = |g: &mut dyn FnMut() -> u32| (g() % 4096) as i32 - 2048;
-    match g() % 20 {
+    match g() % 24 {
         0..=4 => {
             let f7 = [0, 0x20, 1][(g() % 3) as usize];
             let f3 = g() % 8;
@@ -624,7 +626,7 @@ fn random_insn(
         }
         13..=14 => {
             let words = 1 + (g() as usize % room.clamp(1, 6)) as i32;
-            let off = 4 * words + if g().is_multiple_of(10) { 2 } else { 0 };
+            let off = 4 * words;
             let kind = g() % 8;
             if kind == 7 {
                 // the JALR must not be a branch target: its base comes from the AUIPC
@@ -674,6 +676,62 @@ fn random_insn(
             // an opcode no instruction has: illegal
             p.i((g() & !0x7f) | 0x7f);
         }
+        19..=20 => {
+            // compressed instructions, and a 32-bit one at a halfword address between two
+            let pair = isa::c_random::pair(g, &|r| free_reg(r) == r);
+            if g().is_multiple_of(2) {
+                p.i(pair);
+            } else {
+                let w = match g() % 4 {
+                    0 => isa::add(r(g), s(g), s(g)),
+                    1 => isa::lw(r(g), DATA, (g() % 64) as i32 * 4),
+                    2 => isa::mul(r(g), s(g), s(g)),
+                    _ => isa::addi(r(g), s(g), imm(g)),
+                };
+                // the second word is no instruction boundary: no branch may land there
+                while targets.contains(&(p.0.len() + 1)) {
+                    p.i(isa::NOP);
+                }
+                p.i((pair & 0xffff) | w << 16)
+                    .i(w >> 16 | (pair & 0xffff_0000));
+            }
+        }
+        21 => {
+            // compressed branches and jumps to a word boundary ahead
+            let words = 1 + (g() as usize % room.clamp(1, 6)) as i32;
+            let second = g().is_multiple_of(2);
+            let off = 4 * words - if second { 2 } else { 0 };
+            let cb = match g() % 4 {
+                0 => isa::c::beqz(8 + (g() % 8) as u8, off),
+                1 => isa::c::bnez(8 + (g() % 8) as u8, off),
+                2 => isa::c::j(off),
+                _ => isa::c::jal(off),
+            };
+            targets.insert(p.0.len() + words as usize);
+            let nop = u32::from(isa::c::NOP);
+            p.i(if second {
+                nop | u32::from(cb) << 16
+            } else {
+                u32::from(cb) | nop << 16
+            });
+        }
+        22 => {
+            // C.JR / C.JALR to LINK + off: neither the ADDI nor the jump may be a target
+            let words = 1 + (g() as usize % room.clamp(1, 6)) as i32;
+            while (1..=2).any(|k| targets.contains(&(p.0.len() + k))) {
+                p.i(isa::NOP);
+            }
+            let at = p.0.len();
+            targets.insert(at + 2 + words as usize);
+            let j = if g().is_multiple_of(2) {
+                isa::c::jr(LINK)
+            } else {
+                isa::c::jalr(LINK)
+            };
+            p.i(isa::auipc(LINK, 0))
+                .i(isa::addi(LINK, LINK, 4 * (2 + words)))
+                .i(u32::from(j) | u32::from(isa::c::NOP) << 16);
+        }
         _ => {
             p.i([isa::ECALL, isa::EBREAK, isa::fence(), isa::NOP][(g() % 4) as usize]);
         }
@@ -693,13 +751,20 @@ fn random_program(seed: u64, len: usize) -> P {
     let jump = p.0.len();
     p.i(0);
     let handler = p.here();
+    // skip the trapping instruction: 2 or 4 bytes by its low bits
     p.i(isa::csrr(HANDLER, csr::MEPC))
-        .i(isa::addi(HANDLER, HANDLER, 4))
+        .i(isa::lhu(SCRATCH, HANDLER, 0))
+        .i(isa::andi(SCRATCH, SCRATCH, 3))
+        .i(isa::addi(SCRATCH, SCRATCH, -3))
+        .i(isa::addi(HANDLER, HANDLER, 2))
+        .i(isa::bne(SCRATCH, 0, 8))
+        .i(isa::addi(HANDLER, HANDLER, 2))
         .i(isa::csrrw(0, csr::MEPC, HANDLER))
         .i(isa::MRET);
     let main = p.here();
     p.0[jump] = isa::jal(0, (main - RAM_BASE) as i32);
     p.li(HANDLER, handler).i(isa::csrrw(0, csr::MTVEC, HANDLER));
+    p.li(SP_DATA, RAM_BASE + 0x8_0100);
     p.li(DATA, RAM_BASE + 0x8_0000)
         .li(AMO, RAM_BASE + 0x8_0400 + 4 * (g() % 2));
     for r in 1..32u8 {

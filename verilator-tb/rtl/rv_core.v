@@ -1,9 +1,11 @@
-// RV32IMA + Zicsr machine-mode core.
+// RV32IMAC + Zicsr machine-mode core.
 //
-// Single-issue, two stages. The fetch stage presents the address of the next instruction; at
-// the clock edge the instruction and two register-file words are captured (synchronous reads,
-// so the register file and instruction memory fit block RAM; a word written at the same edge
-// is forwarded). The execute stage decodes, executes, accesses data memory (read data returned
+// Single-issue, two stages. The fetch stage presents the (halfword) address of the next
+// instruction and gets the 32 bits starting there (the SoC's RAM is two halfword banks, so
+// any halfword address reads in one cycle); a compressed instruction is expanded to its
+// 32-bit form there, and at the clock edge the instruction and two register-file words are
+// captured (synchronous reads, so the register file and instruction memory fit block RAM; a
+// word written at the same edge is forwarded). The execute stage decodes, executes, accesses data memory (read data returned
 // in the same cycle) and writes back; most instructions take one cycle.
 //
 // The register file has 64 words: x0..x31, then the wide CSRs (mscratch, mepc, mtvec, mtval
@@ -39,7 +41,7 @@ module rv_core #(
     input  wire        clk,
     input  wire        rst,
 
-    // Instruction bus: word address out, instruction in (same cycle).
+    // Instruction bus: halfword address out, the 32 bits from there in (same cycle).
     output wire [31:0] imem_addr,
     input  wire [31:0] imem_rdata,
 
@@ -92,7 +94,10 @@ module rv_core #(
 
     reg [1:0]  seq;
     // fetch-stage outputs: the instruction in execute and two register-file words
-    reg [31:0] ir;
+    reg [31:0] ir;                 // the instruction, expanded if it was compressed
+    reg        ir_c;               // ... it was compressed (2 bytes long)
+    reg [31:0] ir_imm;             // its immediate (decoded in the fetch stage)
+    reg [31:0] ir_raw;             // as fetched (16 bits zero-extended if compressed), for RVFI
     reg [31:0] rf_a, rf_b;
     reg        byp_a, byp_b;       // forward the word written at the fetch edge instead
     reg [31:0] byp_val;
@@ -182,12 +187,7 @@ module rv_core #(
     wire op_s = !opcode[6] && opcode[5] && !opcode[4];       // stores, atomics (zero)
     wire op_r = opcode == 7'b0110011;                        // OP
     wire op_amo = op_s && opcode[2];                         // atomics
-    wire [31:0] imm =
-        op_u ? {insn[31:12], 12'd0} :
-        op_j ? {{11{insn[31]}}, insn[31], insn[19:12], insn[20], insn[30:21], 1'b0} :
-        op_b ? {{19{insn[31]}}, insn[31], insn[7], insn[30:25], insn[11:8], 1'b0} :
-        op_s ? (opcode[2] ? 32'd0 : {{20{insn[31]}}, insn[31:25], insn[11:7]}) :
-        {{20{insn[31]}}, insn[31:20]};
+    wire [31:0] imm = ir_imm;   // decoded in the fetch stage
 
     wire        ex_pc   = seq == S_TRAP || (!seq[1] && ((op_u && !opcode[5]) || op_j || op_b));
     wire        do_sub  = !seq[1] && op_r && f7[5];
@@ -308,7 +308,7 @@ module rv_core #(
         else if (c_30x)
             case (csr_addr[2:0])
                 3'd0: csr_reg = {19'd0, 2'b11, 3'd0, mstatus_mpie, 3'd0, mstatus_mie, 3'd0};
-                3'd1: csr_reg = 32'h4000_1101;
+                3'd1: csr_reg = 32'h4000_1105;
                 default: csr_reg = mie_v;
             endcase
     end
@@ -330,13 +330,13 @@ module rv_core #(
     wire [31:0] csr_wdata  = (csr_rdata & ~({32{c_rw}} | ({32{c_rc}} & csr_src))) |
                              (csr_src & ~{32{c_rc}});
     wire        csr_illegal = !csr_exists || (csr_addr[11:10] == 2'b11 && csr_writes);
-    // WARL on the way into the register file: mepc is word aligned; mtvec bit 1 reads zero,
+    // WARL on the way into the register file: mepc bit 0 reads zero; mtvec bit 1 reads zero,
     // and a vectored table (mode 1) is 64-byte aligned so that entry = base | cause << 2.
     wire        w_mepc  = c_34x && csr_addr[0] && !csr_addr[1];
     wire        w_mtvec = c_30x;
     wire [31:0] csr_wval = {csr_wdata[31:6],
                             csr_wdata[5:2] & ~{4{w_mtvec && csr_wdata[0]}},
-                            csr_wdata[1] & !(w_mepc || w_mtvec),
+                            csr_wdata[1] & !w_mtvec,
                             csr_wdata[0] & !w_mepc};
     // CSR writes that go to registers, decided by the address bits that tell them apart.
     wire        wr_csr     = csr_ex && csr_writes;
@@ -352,18 +352,19 @@ module rv_core #(
     wire legal = is_lui | is_auipc | is_jal | is_jalr | is_branch | is_load | is_store |
                  is_opimm | is_op | is_muldiv | is_fence | is_ecall | is_ebreak | is_mret |
                  is_wfi | is_csr | is_amo_any;
-    wire [31:0] pc_plus4 = pc + 32'd4;
+    // With C every target is a halfword address (JALR clears bit 0, offsets are even, mepc
+    // and mtvec keep bit 0 clear), so no jump can raise a misaligned-fetch exception.
+    wire [31:0] pc_plus4 = pc + {29'd0, !ir_c, ir_c, 1'b0};   // pc + 2 or 4
     wire jump = is_jal | is_jalr | (is_branch && br_taken);
-    wire [31:0] next_pc  = jump ? {sum[31:1], 1'b0} :
-                           is_mret ? {rs2v[31:2], 2'b00} : pc_plus4;
+    wire [31:0] next_pc  = jump ? {sum[31:1], 1'b0} : is_mret ? rs2v : pc_plus4;
 
+    // an illegal compressed instruction arrives as its 16 bits, zero-extended
     wire exc_illegal = !legal || (is_csr && csr_illegal) || insn[1:0] != 2'b11;
-    wire exc_fetch   = !exc_illegal && jump && sum[1];
     wire exc_load    = !exc_illegal && (is_load || is_lr) && ls_misaligned;
     wire exc_store   = !exc_illegal && (is_store || is_sc || is_amo) && ls_misaligned;
-    wire exc_misal   = exc_fetch | exc_load | exc_store;
+    wire exc_misal   = exc_load | exc_store;
     wire exc = exc_illegal | exc_misal | is_ecall | is_ebreak;
-    wire [3:0] exc_cause = exc_illegal ? 4'd2 : exc_fetch ? 4'd0 : exc_load ? 4'd4 :
+    wire [3:0] exc_cause = exc_illegal ? 4'd2 : exc_load ? 4'd4 :
                            exc_store ? 4'd6 : is_ebreak ? 4'd3 : 4'd11;
 
     wire [2:0]  irq_pend = lines & {mie_e, mie_t, mie_s};
@@ -442,7 +443,7 @@ module rv_core #(
     wire t_csrr = t_ex && is_csr;
     wire t_new  = in_ex2 && is_csr;
     wire [31:0] wb_val =
-        ({32{t_sum}} & {sum[31:1], sum[0] & !(trap_in && is_jalr)}) |
+        ({32{t_sum}} & sum) |
         ({32{t_link}} & pc_plus4) | ({32{t_load}} & load_out) |
         ({32{t_logic}} & logic_out) | ({32{t_mul | t_div}} & mul_out) |
         ({32{t_insn}} & insn) | ({32{t_csrr}} & csr_rdata) | ({32{t_new}} & csr_new) |
@@ -461,7 +462,80 @@ module rv_core #(
     // ---------------------------------------------------------------- fetch stage
     // Port A reads rs1, or the counter word of a coming CNT cycle. Port B reads rs2, the CSR
     // word of a SYSTEM instruction (mepc for MRET/ECALL/EBREAK/WFI), or mtvec for TRAP.
-    wire [31:0] fi = imem_rdata;
+    wire [31:0] fr = imem_rdata;
+    wire        fi_c = fr[1:0] != 2'b11;
+    // RV32C expansion: each compressed instruction becomes the 32-bit one it stands for,
+    // except for its immediate, which goes straight to `ir_imm` (the expanded word has zeros
+    // in the immediate's fields; execute takes every immediate from `ir_imm`). A reserved or
+    // unimplemented encoding (C.FLW & co., shifts by 32+, zero immediates where the spec
+    // reserves them) becomes its 16 bits zero-extended, which execute rejects (mtval).
+    wire [15:0] c = fr[15:0];
+    wire [2:0]  cr_d = c[4:2], cr_s = c[9:7];      // x8..x15 fields
+    wire        c_nz6 = c[12] || c[6:2] != 5'd0;   // 6-bit immediate not zero
+    wire [4:0]  ck = {c[1:0], c[15:13]};
+    wire        f_a4  = ck == 5'b00_000 && c[12:5] != 8'd0;               // C.ADDI4SPN
+    wire        f_lw  = ck == 5'b00_010;                                  // C.LW
+    wire        f_sw  = ck == 5'b00_110;                                  // C.SW
+    wire        f_ad  = ck == 5'b01_000;                                  // C.ADDI, C.NOP
+    wire        f_j   = c[1:0] == 2'b01 && c[14:13] == 2'b01;             // C.JAL, C.J
+    wire        f_li  = ck == 5'b01_010;                                  // C.LI
+    wire        f_a16 = ck == 5'b01_011 && c_nz6 && c[11:7] == 5'd2;      // C.ADDI16SP
+    wire        f_lui = ck == 5'b01_011 && c_nz6 && c[11:7] != 5'd2;      // C.LUI
+    wire        f_shi = ck == 5'b01_100 && c[11:10] != 2'b11 &&
+                        (!c[12] || c[11]);                                // C.SRLI/SRAI/ANDI
+    wire        f_alu = ck == 5'b01_100 && c[11:10] == 2'b11 && !c[12];   // C.SUB/XOR/OR/AND
+    wire        f_b   = c[1:0] == 2'b01 && c[15:14] == 2'b11;             // C.BEQZ, C.BNEZ
+    wire        f_sll = ck == 5'b10_000 && !c[12];                        // C.SLLI
+    wire        f_lsp = ck == 5'b10_010 && c[11:7] != 5'd0;               // C.LWSP
+    wire        f_mv  = ck == 5'b10_100 && c[6:2] != 5'd0;                // C.MV, C.ADD
+    wire        f_jr  = ck == 5'b10_100 && c[6:2] == 5'd0 && c[11:7] != 5'd0;  // C.JR/JALR
+    wire        f_eb  = ck == 5'b10_100 && c[12:2] == 11'h400;            // C.EBREAK
+    wire        f_ssp = ck == 5'b10_110;                                  // C.SWSP
+    wire        c_legal = f_a4 | f_lw | f_sw | f_ad | f_j | f_li | f_a16 | f_lui | f_shi |
+                          f_alu | f_b | f_sll | f_lsp | f_mv | f_jr | f_eb | f_ssp;
+    wire [31:0] cx =
+        ({32{f_a4}}  & {12'd0, 5'd2, 3'b000, 2'b01, cr_d, 7'b0010011}) |
+        ({32{f_lw}}  & {12'd0, 2'b01, cr_s, 3'b010, 2'b01, cr_d, 7'b0000011}) |
+        ({32{f_sw}}  & {7'd0, 2'b01, cr_d, 2'b01, cr_s, 3'b010, 5'd0, 7'b0100011}) |
+        ({32{f_ad}}  & {12'd0, c[11:7], 3'b000, c[11:7], 7'b0010011}) |
+        ({32{f_j}}   & {20'd0, 4'd0, !c[15], 7'b1101111}) |
+        ({32{f_li}}  & {12'd0, 5'd0, 3'b000, c[11:7], 7'b0010011}) |
+        ({32{f_a16}} & {12'd0, 5'd2, 3'b000, 5'd2, 7'b0010011}) |
+        ({32{f_lui}} & {20'd0, c[11:7], 7'b0110111}) |
+        ({32{f_shi}} & {1'b0, c[10] & !c[11], 10'd0, 2'b01, cr_s, 1'b1, c[11], 1'b1,
+                        2'b01, cr_s, 7'b0010011}) |
+        ({32{f_alu}} & {1'b0, c[6:5] == 2'b00, 5'd0, 2'b01, cr_d, 2'b01, cr_s,
+                        c[6] | c[5], c[6], c[6] & c[5], 2'b01, cr_s, 7'b0110011}) |
+        ({32{f_b}}   & {12'd0, 2'b01, cr_s, 2'b00, c[13], 5'd0, 7'b1100011}) |
+        ({32{f_sll}} & {12'd0, c[11:7], 3'b001, c[11:7], 7'b0010011}) |
+        ({32{f_lsp}} & {12'd0, 5'd2, 3'b010, c[11:7], 7'b0000011}) |
+        ({32{f_mv}}  & {7'd0, c[6:2], c[12] ? c[11:7] : 5'd0, 3'b000, c[11:7], 7'b0110011}) |
+        ({32{f_jr}}  & {12'd0, c[11:7], 3'b000, 4'd0, c[12], 7'b1100111}) |
+        ({32{f_eb}}  & 32'h0010_0073) |
+        ({32{f_ssp}} & {7'd0, c[6:2], 5'd2, 3'b010, 5'd0, 7'b0100011}) |
+        ({32{!c_legal}} & {16'd0, c});
+    // Immediates. 32-bit formats by opcode bits only (illegal encodings never use the sum);
+    // compressed ones by format (the register-register forms and C.JR/C.JALR take zero).
+    wire [6:0]  fo = fr[6:0];
+    wire [31:0] imm32 =
+        (!fo[6] && fo[4] && fo[2]) ? {fr[31:12], 12'd0} :                            // U
+        (fo[6] && fo[3]) ? {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0} : // J
+        (fo[6] && !fo[4] && !fo[2]) ?
+            {{19{fr[31]}}, fr[31], fr[7], fr[30:25], fr[11:8], 1'b0} :                 // B
+        (!fo[6] && fo[5] && !fo[4]) ?
+            (fo[2] ? 32'd0 : {{20{fr[31]}}, fr[31:25], fr[11:7]}) :                    // S, A
+        {{20{fr[31]}}, fr[31:20]};                                                     // I
+    wire [31:0] immc =
+        ({32{f_a4}}  & {22'd0, c[10:7], c[12:11], c[5], c[6], 2'b00}) |
+        ({32{f_lw | f_sw}} & {25'd0, c[5], c[12:10], c[6], 2'b00}) |
+        ({32{f_ad | f_li | f_shi | f_sll}} & {{27{c[12]}}, c[6:2]}) |
+        ({32{f_a16}} & {{23{c[12]}}, c[4:3], c[5], c[2], c[6], 4'd0}) |
+        ({32{f_lui}} & {{15{c[12]}}, c[6:2], 12'd0}) |
+        ({32{f_j}}   & {{21{c[12]}}, c[8], c[10:9], c[6], c[7], c[2], c[11], c[5:3], 1'b0}) |
+        ({32{f_b}}   & {{24{c[12]}}, c[6:5], c[2], c[11:10], c[4:3], 1'b0}) |
+        ({32{f_lsp}} & {24'd0, c[3:2], c[12], c[6:4], 2'b00}) |
+        ({32{f_ssp}} & {24'd0, c[8:7], c[12:9], 2'b00});
+    wire [31:0] fi = fi_c ? cx : fr;
     wire        f_sys = fi[6:0] == 7'b1110011;
     // (x0 for the immediate CSR forms, whose rs1 field is the immediate)
     wire [5:0]  port_a = to_cnt ? {3'b100, 1'b1, n_hi, n_ins} :
@@ -473,7 +547,10 @@ module rv_core #(
                                           fi[26] ? fi[21:20] : 2'b10};
     always @(posedge clk) begin
         pc <= fetch_pc;
-        ir <= imem_rdata;
+        ir <= fi;
+        ir_c <= fi_c;
+        ir_imm <= fi_c ? immc : imm32;
+        ir_raw <= fi_c ? {16'd0, c} : fr;
         rf_a <= regs[port_a];
         rf_b <= regs[port_b];
         byp_a <= !rst && ((wb_en && wb_addr == port_a) || amo_a);
@@ -585,7 +662,7 @@ module rv_core #(
                 intr_flag <= 1'b0;
                 rvfi_valid <= 1'b1;
                 rvfi_order <= rvfi_order + 64'd1;
-                rvfi_insn <= insn;
+                rvfi_insn <= ir_raw;
                 rvfi_intr <= intr_flag;
                 rvfi_ext_intr_mip <= intr_flag ? intr_mip : 3'd0;
                 rvfi_ext_mip <= ex ? lines : seen_mip;

@@ -5,7 +5,7 @@
 //   0x0c00_0000  PLIC (UART0 = source 10, UART1 = source 11)
 //   0x1000_0000  UART0 (LBC link)
 //   0x1000_1000  UART1 (radio)
-//   0x8000_0000  RAM, 1 MiB; execution starts at its base
+//   0x8000_0000  RAM, 1 MiB in two halfword banks; execution starts at its base
 //   0x8100_0000  frame-grabber window, 0x13_0000 bytes (written by the harness, read by the core)
 `default_nettype none
 
@@ -83,9 +83,17 @@ module soc (
     );
 
     // ------------------------------------------------------------------ RAM
-    reg [31:0] ram [0:262143];
+    // Two halfword banks: `ram_lo` holds bits 15:0 of each word, `ram_hi` bits 31:16. The
+    // data port reads and writes both at the same word; the fetch port reads the 32 bits at
+    // any halfword address in one cycle: at a word boundary {hi[w], lo[w]}, in the middle of
+    // a word {lo[w + 1], hi[w]} (the low bank's address is w + addr[1]).
+    reg [15:0] ram_lo [0:262143];
+    reg [15:0] ram_hi [0:262143];
     wire imem_in_ram = imem_addr[31:20] == 12'h800;
-    assign imem_rdata = imem_in_ram ? ram[imem_addr[19:2]] : 32'd0;
+    wire [17:0] iw = imem_addr[19:2];
+    wire [15:0] i_lo = ram_lo[iw + {17'd0, imem_addr[1]}];
+    wire [15:0] i_hi = ram_hi[iw];
+    assign imem_rdata = !imem_in_ram ? 32'd0 : imem_addr[1] ? {i_lo, i_hi} : {i_hi, i_lo};
 
     wire sel_ram   = dmem_addr[31:20] == 12'h800;
     localparam [21:0] FMEM_WORDS = 22'h4_C000;  // vision::frame::WINDOW_LEN / 4
@@ -97,16 +105,22 @@ module soc (
     wire sel_uart1 = dmem_addr[31:3] == 29'h0200_0200;
 
     integer k;
-    initial for (k = 0; k < 262144; k = k + 1) ram[k] = 32'd0;
+    initial for (k = 0; k < 262144; k = k + 1) begin
+        ram_lo[k] = 16'd0;
+        ram_hi[k] = 16'd0;
+    end
 
-    wire [31:0] ram_rdata = ram[dmem_addr[19:2]];
+    wire [17:0] dw = dmem_addr[19:2];
+    wire [31:0] ram_rdata = {ram_hi[dw], ram_lo[dw]};
     always @(posedge clk) begin
-        if (bd_we) ram[bd_addr] <= bd_wdata;
-        else if (sel_ram && !rst) begin
-            if (dmem_wstrb[0]) ram[dmem_addr[19:2]][7:0] <= dmem_wdata[7:0];
-            if (dmem_wstrb[1]) ram[dmem_addr[19:2]][15:8] <= dmem_wdata[15:8];
-            if (dmem_wstrb[2]) ram[dmem_addr[19:2]][23:16] <= dmem_wdata[23:16];
-            if (dmem_wstrb[3]) ram[dmem_addr[19:2]][31:24] <= dmem_wdata[31:24];
+        if (bd_we) begin
+            ram_lo[bd_addr] <= bd_wdata[15:0];
+            ram_hi[bd_addr] <= bd_wdata[31:16];
+        end else if (sel_ram && !rst) begin
+            if (dmem_wstrb[0]) ram_lo[dw][7:0] <= dmem_wdata[7:0];
+            if (dmem_wstrb[1]) ram_lo[dw][15:8] <= dmem_wdata[15:8];
+            if (dmem_wstrb[2]) ram_hi[dw][7:0] <= dmem_wdata[23:16];
+            if (dmem_wstrb[3]) ram_hi[dw][15:8] <= dmem_wdata[31:24];
         end
     end
 

@@ -1,4 +1,4 @@
-//! The in-house RV32IMA soft core and its SoC (Verilog in `rtl/`), Verilated at build time and
+//! The in-house RV32IMAC soft core and its SoC (Verilog in `rtl/`), Verilated at build time and
 //! driven from Rust: a cycle-level harness with UART stimulus ([`soc`]), a golden
 //! instruction-set model ([`golden`]) and a lockstep checker that compares every retired
 //! instruction of the RTL with the model ([`lockstep`]), and a co-simulation of the SoC with

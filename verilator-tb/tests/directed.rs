@@ -3,7 +3,7 @@
 mod common;
 use common::*;
 use verilator_tb::golden::cause;
-use verilator_tb::isa::{self, csr, reg::*};
+use verilator_tb::isa::{self, c, csr, reg::*};
 use verilator_tb::lockstep::Stimulus;
 use verilator_tb::soc::{map, RAM_BASE};
 
@@ -307,10 +307,56 @@ fn exceptions() {
     body = isa::li(A0, OUT + 2).to_vec();
     body.push(isa::amo_w(isa::amo::ADD, A1, A0, A1));
     expect_trap(&body, cause::MISALIGNED_STORE, Some(OUT + 2));
-    // jal +6 lands on a half-word boundary.
-    let p = with_trap_recorder();
-    let here = p.here();
-    expect_trap(&[isa::jal(RA, 6)], cause::MISALIGNED_FETCH, Some(here + 6));
+    // Compressed: C.EBREAK, and reserved or foreign 16-bit encodings, whose mtval is their
+    // 16 bits (the handler skips the whole word, a C.NOP after them).
+    let nop = u32::from(c::NOP) << 16;
+    expect_trap(&[u32::from(c::EBREAK) | nop], cause::BREAKPOINT, Some(0));
+    for bad in [
+        0x0001_u32 << 16, // 0x0000 with a C.NOP after it
+        0x2000 | nop,
+        0x4002 | nop,
+        0x8002 | nop,
+        0x6101 | nop,
+        0x1006 | nop,
+        0x9c01 | nop,
+        0x8000 | nop,
+        0xe002 | nop,
+    ] {
+        expect_trap(&[bad], cause::ILLEGAL_INSTRUCTION, Some(bad & 0xffff));
+    }
+}
+
+#[test]
+fn compressed_instructions() {
+    let pair = |a: u16, b: u16| u32::from(a) | u32::from(b) << 16;
+    let mut p = Prog::new();
+    p.li(A0, 5).li(S1, OUT);
+    p.i(pair(c::addi(A0, 3), c::li(A1, -7))); // a0 = 8, a1 = -7
+    p.i(pair(c::mv(A2, A0), c::add(A2, A1))); // a2 = 1
+    p.i(pair(c::slli(A2, 4), c::lui(A3, 1))); // a2 = 16, a3 = 0x1000
+                                              // jal +6 lands on a halfword address: a 32-bit ADDI between two compressed instructions
+    p.i(isa::jal(RA, 6));
+    let addi = isa::addi(A4, A2, 100);
+    p.i(pair(c::li(A4, 1), addi as u16)); // the C.LI is jumped over
+    p.i(addi >> 16 | u32::from(c::NOP) << 16); // a4 = 116
+                                               // C.JALR links pc + 2
+    p.i(isa::auipc(T0, 0)).i(isa::addi(T0, T0, 12));
+    p.i(pair(c::jalr(T0), c::li(A0, 0))); // the C.LI is jumped over
+    p.i(isa::sub(16, T0, RA)); // 2
+                               // C.SW / C.LW through x9; C.BNEZ to a halfword address
+    p.i(pair(c::sw(A2, S1, 4), c::lw(A5, S1, 4))); // a5 = 16
+    p.i(pair(c::bnez(A1, 6), c::NOP));
+    p.i(pair(c::li(A0, 0), c::addi(A0, 1))); // the C.LI is jumped over: a0 = 9
+    p.i(pair(c::addi4spn(S0, 64), c::NOP));
+    p.exit_pass();
+    let (run, _) = run_pass(&p);
+    let x = run.hart.x;
+    assert_eq!(
+        [x[10], x[11], x[12], x[13]],
+        [9, (-7i32) as u32, 16, 0x1000]
+    );
+    assert_eq!([x[14], x[15], x[16]], [116, 16, 2]);
+    assert_eq!(x[usize::from(S0)], x[2].wrapping_add(64));
 }
 
 #[test]
@@ -340,7 +386,7 @@ fn csrs_and_counters() {
         [x[11], x[12], x[13]],
         [0x1234_5678, 0x1234_567b, 0x1234_5600]
     );
-    assert_eq!(x[9], 0x4000_1101);
+    assert_eq!(x[9], 0x4000_1105);
     assert_eq!(x[14], 0);
     assert_eq!(x[15], 10);
     // one cycle per CSR read (two when a counter carry falls in between)

@@ -1,7 +1,8 @@
 //! Seeded random instruction streams: ALU, M, loads and stores (some misaligned), forward
-//! branches and jumps (some misaligned), atomics, CSR accesses, encodings that must be
-//! illegal, and an external interrupt line toggled at random cycles. A trap handler skips
-//! every trapping instruction.
+//! branches and jumps, atomics, CSR accesses, encodings that must be illegal, compressed
+//! instructions (ALU, loads and stores, branches and jumps, C.EBREAK, reserved encodings) and
+//! 32-bit ones at halfword addresses, and an external interrupt line toggled at random cycles.
+//! A trap handler skips every trapping instruction (2 or 4 bytes).
 use super::Prog;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -14,9 +15,11 @@ use verilator_tb::soc::RAM_BASE;
 const DATA: u8 = 8; // s0: aligned data area
 const AMO_BASE: u8 = 9; // s1: aligned word for atomics
 const AMO_ODD: u8 = 18; // s2: misaligned word address
+const SP_DATA: u8 = 2; // sp: aligned data for C.LWSP/C.SWSP/C.ADDI4SPN
+const SCRATCH: u8 = 29; // t4: the handler's second register
 const LINK: u8 = 30; // t5: auipc base for jalr
 const HANDLER: u8 = 31; // t6
-const RESERVED: [u8; 5] = [DATA, AMO_BASE, AMO_ODD, LINK, HANDLER];
+const RESERVED: [u8; 7] = [DATA, AMO_BASE, AMO_ODD, SP_DATA, SCRATCH, LINK, HANDLER];
 const DATA_AREA: u32 = RAM_BASE + 0x8_0000;
 pub const STREAM_LEN: usize = 3000;
 const CSRS: [u16; 14] = [
@@ -50,9 +53,10 @@ fn rs(rng: &mut ChaCha8Rng) -> u8 {
 }
 
 /// One random instruction (or a short sequence) at `p.here()`; `room` words remain before
-/// the end of the stream.
+/// the end of the stream. Every word starts an instruction except the second of a 32-bit
+/// instruction at a halfword address, which no branch targets.
 fn gen(rng: &mut ChaCha8Rng, p: &mut Prog, room: usize, targets: &mut HashSet<usize>) {
-    match rng.random_range(0..100u32) {
+    match rng.random_range(0..120u32) {
         0..=24 => {
             let ops: [fn(u8, u8, u8) -> u32; 10] = [
                 isa::add,
@@ -112,10 +116,9 @@ fn gen(rng: &mut ChaCha8Rng, p: &mut Prog, room: usize, targets: &mut HashSet<us
             p.i(w);
         }
         65..=72 => {
-            // forward branches and jumps, occasionally to a half-word boundary
+            // forward branches and jumps
             let words = rng.random_range(1..=room.clamp(1, 6)) as i32;
-            let odd = if rng.random_range(0..10) == 0 { 2 } else { 0 };
-            let off = 4 * words + odd;
+            let off = 4 * words;
             let kind = rng.random_range(0..8);
             if kind == 7 {
                 // the JALR below must not be a branch target: its base comes from the AUIPC
@@ -169,17 +172,76 @@ fn gen(rng: &mut ChaCha8Rng, p: &mut Prog, room: usize, targets: &mut HashSet<us
                 2 => (body | (1 << 12)) & !(1 << 25) | (1 << 26) | 0b001_0011 | rdf,
                 3 => (body & !(7 << 12)) | (4 << 12) | 0b111_0011 | rdf,
                 4 => (body & !(7 << 12)) | (2 << 12) | (0b00101 << 27) | 0b010_1111 | rdf,
-                5 => rng.random::<u32>() & !3,
+                5 => (rng.random::<u32>() & !0x7f) | 0x7f,
                 _ => (body & !(7 << 12)) | (1 << 12) | 0b000_1111 | rdf,
             };
             p.i(w);
         }
-        _ => {
+        97..=99 => {
             p.i(match rng.random_range(0..3) {
                 0 => isa::ECALL,
                 1 => isa::EBREAK,
                 _ => isa::fence(),
             });
+        }
+        100..=111 => {
+            // compressed instructions, and a 32-bit one at a halfword address between two
+            let mut g = || rng.random::<u32>();
+            let pair = isa::c_random::pair(&mut g, &|r| r != 0 && !RESERVED.contains(&r));
+            if rng.random_range(0..2) == 0 {
+                p.i(pair);
+            } else {
+                let w = match rng.random_range(0..5) {
+                    0 => isa::add(rd(rng), rs(rng), rs(rng)),
+                    1 => isa::lw(rd(rng), DATA, 4 * rng.random_range(-64..64)),
+                    2 => isa::sh(rs(rng), DATA, 2 * rng.random_range(-64..64)),
+                    3 => isa::muldiv(rng.random_range(0..8), rd(rng), rs(rng), rs(rng)),
+                    _ => isa::addi(rd(rng), rs(rng), rng.random_range(-2048..2048)),
+                };
+                // the second word is no instruction boundary: no branch may land there
+                while targets.contains(&(p.words.len() + 1)) {
+                    p.i(isa::NOP);
+                }
+                p.i((pair & 0xffff) | w << 16)
+                    .i(w >> 16 | (pair & 0xffff_0000));
+            }
+        }
+        112..=116 => {
+            // compressed branches and jumps to a word boundary ahead
+            let words = rng.random_range(1..=room.clamp(1, 6)) as i32;
+            let second = rng.random_range(0..2) == 0;
+            let off = 4 * words - if second { 2 } else { 0 };
+            let p8 = rng.random_range(8..16u8);
+            let cb = match rng.random_range(0..4) {
+                0 => isa::c::beqz(p8, off),
+                1 => isa::c::bnez(p8, off),
+                2 => isa::c::j(off),
+                _ => isa::c::jal(off),
+            };
+            targets.insert(p.words.len() + words as usize);
+            let nop = u32::from(isa::c::NOP);
+            p.i(if second {
+                nop | u32::from(cb) << 16
+            } else {
+                u32::from(cb) | nop << 16
+            });
+        }
+        _ => {
+            // C.JR / C.JALR to LINK + off: neither the ADDI nor the jump may be a target
+            let words = rng.random_range(1..=room.clamp(1, 6)) as i32;
+            while (1..=2).any(|k| targets.contains(&(p.words.len() + k))) {
+                p.i(isa::NOP);
+            }
+            let at = p.words.len();
+            targets.insert(at + 2 + words as usize);
+            let j = if rng.random_range(0..2) == 0 {
+                isa::c::jr(LINK)
+            } else {
+                isa::c::jalr(LINK)
+            };
+            p.i(isa::auipc(LINK, 0))
+                .i(isa::addi(LINK, LINK, 4 * (2 + words)))
+                .i(u32::from(j) | u32::from(isa::c::NOP) << 16);
         }
     }
 }
@@ -188,17 +250,24 @@ pub fn stream(seed: u64) -> (Prog, Vec<(u64, Stimulus)>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut p = Prog::new();
     let jump = p.hole(1);
-    // Handler: skip the trapping instruction; for interrupts, mask them and return.
+    // Handler: skip the trapping instruction (2 or 4 bytes by its low bits); for interrupts,
+    // mask them and return.
     let handler = p.here();
     p.i(isa::csrr(HANDLER, csr::MCAUSE));
-    p.i(isa::blt(HANDLER, 0, 20));
+    p.i(isa::blt(HANDLER, 0, 40));
     p.i(isa::csrr(HANDLER, csr::MEPC))
-        .i(isa::addi(HANDLER, HANDLER, 4));
+        .i(isa::lhu(SCRATCH, HANDLER, 0))
+        .i(isa::andi(SCRATCH, SCRATCH, 3))
+        .i(isa::addi(SCRATCH, SCRATCH, -3))
+        .i(isa::addi(HANDLER, HANDLER, 2))
+        .i(isa::bne(SCRATCH, 0, 8))
+        .i(isa::addi(HANDLER, HANDLER, 2));
     p.i(isa::csrrw(0, csr::MEPC, HANDLER)).i(isa::MRET);
     p.i(isa::csrrw(0, csr::MIE, 0)).i(isa::MRET);
     let main = p.here();
     p.words[jump] = isa::jal(0, (main - p.addr_of(jump)) as i32);
     p.li(HANDLER, handler).i(isa::csrrw(0, csr::MTVEC, HANDLER));
+    p.li(SP_DATA, DATA_AREA + 0x100);
     p.li(DATA, DATA_AREA)
         .li(AMO_BASE, DATA_AREA + 0x400)
         .li(AMO_ODD, DATA_AREA + 0x402);
