@@ -1329,6 +1329,20 @@ impl<const N: usize> Endpoint<N> {
         }
     }
 
+    /// The state broadcast queued last started on the radio UART at `at` (local time): the
+    /// schedule learns how long after its due time the application writes, and makes later
+    /// broadcasts due that much earlier ([`crate::schedule::Schedule::written`]).
+    pub fn state_written(&mut self, at: u64) {
+        if let Some(s) = self.schedule.as_mut() {
+            s.written(at);
+        }
+    }
+
+    /// The schedule's learned send lead in microseconds (0 without a slotted schedule).
+    pub fn send_lead_us(&self) -> u64 {
+        self.schedule.as_ref().map_or(0, |s| s.send_lead_us())
+    }
+
     /// Earliest time at which [`Endpoint::poll`] has work to do.
     pub fn poll_at(&mut self, now: u64) -> u64 {
         let mut t = self.next_heartbeat.unwrap_or(now);

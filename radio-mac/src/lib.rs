@@ -151,6 +151,16 @@ impl CarMac {
     pub fn push_rx(&mut self, now: u64, bytes: &[u8]) {
         self.ep.push_rx(now, bytes)
     }
+    /// The state broadcast queued last started on the radio UART at `at`: see
+    /// [`Endpoint::state_written`].
+    pub fn state_written(&mut self, at: u64) {
+        self.ep.state_written(at);
+    }
+
+    /// The learned send lead of the state broadcast, microseconds.
+    pub fn send_lead_us(&self) -> u64 {
+        self.ep.send_lead_us()
+    }
 
     /// Advance timers to `now`.
     pub fn poll(&mut self, now: u64) {

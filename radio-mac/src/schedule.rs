@@ -11,6 +11,13 @@
 //! * [`TimeBase::FollowLowest`]: each car aligns to the state broadcasts of the lowest car ID
 //!   it hears, subtracting the known pipeline latency of a state frame; the lowest car
 //!   free-runs. This needs no extra bytes on air.
+//!
+//! The phase is where frames start on the sender's UART, so a sender must start writing at
+//! its slot's start, not merely decide to then: a program that needs some time between
+//! [`Schedule::next_due`] and its UART write reports each write ([`Schedule::written`]) and
+//! the schedule learns that delay and makes the broadcast due that much earlier (the send
+//! lead). Otherwise every follower would sit the delay behind its reference, and the lowest
+//! car, hearing everybody late, would keep yielding to them.
 
 use crate::addr::CarId;
 
@@ -33,6 +40,12 @@ pub const OUTLIERS_TO_JUMP: u8 = 4;
 
 /// Consecutive disagreeing frames after which a car with nobody to follow adopts their phase.
 pub const ROOT_YIELD: u8 = 8;
+
+/// Largest send lead learned from [`Schedule::written`], in microseconds (a write later than
+/// this after its slot's start is a late frame, not a delay to make up for).
+pub const MAX_SEND_LEAD_US: u32 = 1_000;
+/// Weight of a new delay in the send lead: 1 / 2^`LEAD_SHIFT`.
+const LEAD_SHIFT: u32 = 2;
 
 /// Where the frame boundaries come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -111,6 +124,10 @@ pub struct Schedule {
     dissent: u8,
     next_tx: Option<u64>,
     last_tx: Option<u64>,
+    /// Slot start of the last broadcast sent (its write should have started then).
+    last_target: Option<u64>,
+    /// How much earlier than its slot's start a broadcast is due, in 1/16 microseconds.
+    lead_x16: u32,
 }
 
 impl Schedule {
@@ -142,6 +159,8 @@ impl Schedule {
             dissent: 0,
             next_tx: None,
             last_tx: None,
+            last_target: None,
+            lead_x16: 0,
         }
     }
 
@@ -297,10 +316,11 @@ impl Schedule {
         t
     }
 
-    /// When the next state broadcast is due (computed lazily from `now`).
+    /// When the next state broadcast is due (computed lazily from `now`): its slot's start,
+    /// less the send lead.
     pub fn next_due(&mut self, now: u64) -> u64 {
         if let Some(t) = self.next_tx {
-            return t;
+            return t.saturating_sub(self.send_lead_us());
         }
         let t = match self.timing {
             StateTiming::Periodic { period_us } => match self.last_tx {
@@ -313,11 +333,34 @@ impl Schedule {
                     Some(l) => (l + u64::from(FRAME_US) / 2).max(now),
                     None => now,
                 };
-                self.next_slot_start(earliest)
+                self.next_slot_start(earliest + self.send_lead_us())
             }
         };
         self.next_tx = Some(t);
-        t
+        t.saturating_sub(self.send_lead_us())
+    }
+
+    /// The send lead: how long before its slot's start a broadcast is made due (see the
+    /// module documentation), in microseconds.
+    pub fn send_lead_us(&self) -> u64 {
+        u64::from(self.lead_x16 >> 4)
+    }
+
+    /// The broadcast sent last started on the UART at `at`: learn the delay from its due
+    /// time to the write.
+    pub fn written(&mut self, at: u64) {
+        let Some(target) = self.last_target.take() else {
+            return;
+        };
+        if !matches!(self.timing, StateTiming::Slotted { .. }) {
+            return;
+        }
+        // The write came `late` after the slot start it aimed at, with the current lead.
+        let late = at as i64 - target as i64;
+        let delay = (late + self.send_lead_us() as i64).clamp(0, i64::from(MAX_SEND_LEAD_US));
+        let lead = i64::from(self.lead_x16);
+        let next = lead + ((delay << 4) - lead) / (1 << LEAD_SHIFT);
+        self.lead_x16 = next.clamp(0, i64::from(MAX_SEND_LEAD_US) << 4) as u32;
     }
 
     /// Time of the last broadcast.
@@ -327,6 +370,7 @@ impl Schedule {
 
     /// Record that a broadcast was sent at `now`.
     pub fn sent(&mut self, now: u64) {
+        self.last_target = self.next_tx;
         self.last_tx = Some(now);
         self.next_tx = None;
     }
@@ -428,6 +472,42 @@ mod tests {
         let slot6 = rx + 10 - u64::from(DEFAULT_STATE_LATENCY_US);
         let next = s.slot_start(7, rx + 10).unwrap();
         assert_eq!(next, slot6 + u64::from(SLOT_US) + u64::from(FRAME_US));
+    }
+
+    #[test]
+    fn a_learned_send_lead_makes_writes_start_on_the_slot() {
+        let mut s = Schedule::new(id(3), StateTiming::slotted(id(3)));
+        let slot = 2 * u64::from(SLOT_US);
+        let f = u64::from(FRAME_US);
+        assert_eq!(s.next_due(0), slot);
+        // The program always writes 240 us after it is due.
+        let mut writes = Vec::new();
+        for k in 0..40 {
+            let due = s.next_due(k * f);
+            s.sent(due);
+            s.written(due + 240);
+            writes.push((due + 240) as i64 - (slot + k * f) as i64);
+        }
+        assert_eq!(writes[0], 240);
+        assert!(writes.last().unwrap().abs() <= 1, "{writes:?}");
+        assert_eq!(s.send_lead_us(), 239);
+        // A write reported without a send is ignored; an absurd delay is bounded.
+        s.written(10);
+        let due = s.next_due(40 * f);
+        s.sent(due);
+        s.written(due + 1_000_000);
+        assert!(s.send_lead_us() <= u64::from(MAX_SEND_LEAD_US));
+    }
+
+    #[test]
+    fn without_reports_the_lead_stays_zero() {
+        let mut s = Schedule::new(id(5), StateTiming::slotted(id(5)));
+        for k in 0..5 {
+            let due = s.next_due(k * u64::from(FRAME_US));
+            assert_eq!(due % u64::from(FRAME_US), 4 * u64::from(SLOT_US));
+            s.sent(due);
+        }
+        assert_eq!(s.send_lead_us(), 0);
     }
 
     #[test]

@@ -24,6 +24,8 @@ pub const CRC_LEN: usize = 2;
 pub const MIN_RAW: usize = 2 + CRC_LEN;
 /// Largest raw frame (an authenticated command with a full payload).
 pub const MAX_RAW: usize = 2 + 6 + MAX_PAYLOAD + AUTH_TAG_LEN + CRC_LEN;
+/// The byte that ends every frame on air (COBS leaves no other zero).
+pub const DELIMITER: u8 = 0x00;
 /// Largest frame on air: COBS adds one byte below 254 bytes, plus the `0x00` delimiter.
 pub const MAX_ENCODED: usize = MAX_RAW + 2;
 /// Bytes on air for one state broadcast, all framing included.

@@ -1,10 +1,15 @@
 //! Board layer of the program: feeds the two UARTs' interrupt-driven rings and the CLINT time
 //! to [`ubc_app::program::Program`], runs the vision pipeline on each new camera frame (in
 //! place in the frame grabber's window) and hands the program its detections, logs its events
-//! through defmt and sleeps in WFI until the program's next deadline, a received byte, or the
-//! next look at the frame grabber.
+//! through defmt and sleeps in WFI until the program's next deadline, a whole frame on either
+//! line, or the next look at the frame grabber.
+//!
+//! The processor's time is the car's budget: the UARTs' interrupts move bytes into rings
+//! without waking the program, which runs only when a frame is complete (the serial driver
+//! marks frame delimiters and when they arrived), when it has something due, or when a ring
+//! fills up; a look at the frame grabber that finds nothing new costs two word reads.
 
-use crate::board::{Board, Camera, Clock, Uart};
+use crate::board::{self, Board, Camera, Clock, Uart};
 use ubc_app::program::{self, BytePort, Config, LogEvent, LogSink, Program};
 use ubc_hal::cpu;
 use vision::blobs::BlobDetector;
@@ -16,6 +21,9 @@ const STATS_PERIOD_US: u64 = 10_000_000;
 /// How often the frame grabber is looked at, in microseconds (the camera publishes at 15 to
 /// 30 frames per second and raises no interrupt).
 const CAMERA_POLL_US: u64 = 10_000;
+/// Bytes waiting in a receive ring that wake the program even without a whole frame (noise
+/// or a frame longer than any the protocols use), well before the ring fills.
+const RX_WAKE_BYTES: usize = 1024;
 
 struct BoardClock<'a>(&'a Clock);
 
@@ -27,11 +35,21 @@ impl program::Clock for BoardClock<'_> {
 
 /// A UART as the program's byte port; a missing one (no radio found) takes every byte and
 /// never delivers any.
-struct Port<'a>(Option<&'a mut Uart>);
+struct Port<'a>(Option<&'a mut Uart>, &'a Clock);
 
 impl BytePort for Port<'_> {
     fn read(&mut self, buf: &mut [u8]) -> usize {
         self.0.as_mut().map_or(0, |u| u.read_available(buf))
+    }
+
+    fn read_frame(&mut self, buf: &mut [u8]) -> (usize, Option<u64>) {
+        match self.0.as_mut() {
+            Some(u) => {
+                let (n, tick) = u.read_frame(buf);
+                (n, tick.map(|t| self.1.micros_of_recent(t)))
+            }
+            None => (0, None),
+        }
     }
 
     fn write(&mut self, bytes: &[u8]) -> usize {
@@ -94,54 +112,76 @@ impl LogSink for Defmt {
     }
 }
 
+/// Whether a port holds a whole frame, or enough bytes to look at anyway.
+fn has_input(port: Option<&Uart>) -> bool {
+    port.is_some_and(|u| u.frame_end_pending() || u.rx_len() >= RX_WAKE_BYTES)
+}
+
 /// Runs the program forever.
 pub fn run(board: Board) -> ! {
     let clock = board.clock;
     let mut lbc = board.lbc;
+    lbc.stamp_frames(board::frame_stamping(lbc_link::header::TERMINATOR));
     let mut radio = board.radio.ok();
+    if let Some(r) = radio.as_mut() {
+        r.stamp_frames(board::frame_stamping(radio_mac::wire::DELIMITER));
+    }
     let mut camera = board.camera;
     let mut detector = BlobDetector::new();
     let mut program = Program::new(Config::default());
-    let mut next_stats = clock.micros() + STATS_PERIOD_US;
+    let start = clock.micros();
+    let mut next_stats = start + STATS_PERIOD_US;
+    let mut next_camera = start;
+    // The program runs at once, then when input or its next deadline comes.
+    let mut program_due = start;
     loop {
-        grab_frame(&mut camera, &mut detector, &mut program, &clock);
-        program.poll(
-            &BoardClock(&clock),
-            &mut Port(Some(&mut lbc)),
-            &mut Port(radio.as_mut()),
-            &mut Defmt,
-        );
-        let now = clock.micros();
+        let mut now = clock.micros();
+        if has_input(Some(&lbc)) || has_input(radio.as_ref()) || now >= program_due {
+            program.poll(
+                &BoardClock(&clock),
+                &mut Port(Some(&mut lbc), &clock),
+                &mut Port(radio.as_mut(), &clock),
+                &mut Defmt,
+            );
+            now = clock.micros();
+            program_due = program.poll_at(now);
+        }
+        if now >= next_camera {
+            next_camera = now + CAMERA_POLL_US;
+            if grab_frame(&mut camera, &mut detector, &mut program, &clock) {
+                now = clock.micros();
+                program_due = program.poll_at(now);
+            }
+        }
         if now >= next_stats {
             next_stats += STATS_PERIOD_US;
             log_stats(&program, now);
         }
-        let due = program
-            .poll_at(now)
-            .min(next_stats)
-            .min(now + CAMERA_POLL_US);
+        let due = program_due.min(next_stats).min(next_camera);
         if due > now {
-            clock.set_wakeup(clock.ticks_from_micros(due));
-            cpu::idle_unless(|| {
-                lbc.rx_len() > 0
-                    || radio.as_ref().is_some_and(|r| r.rx_len() > 0)
-                    || clock.micros() >= due
-            });
+            // Interrupts that bring no whole frame go back to sleep here.
+            let wake = clock.wakeup_tick(due);
+            clock.set_wakeup(wake);
+            let ready =
+                || has_input(Some(&lbc)) || has_input(radio.as_ref()) || clock.ticks() >= wake;
+            while !ready() {
+                cpu::idle_unless(ready);
+            }
         }
     }
 }
 
 /// Runs the vision pipeline on the newest frame, if a new one is published, and gives the
-/// program its detections. A frame the writer overwrote meanwhile is dropped (counted by the
-/// grabber); a window without a valid header (no camera) costs one header read.
+/// program its detections; whether it did. A frame the writer overwrote meanwhile is dropped
+/// (counted by the grabber); a window without a valid header (no camera) costs one word read.
 fn grab_frame(
     camera: &mut Camera,
     detector: &mut BlobDetector,
     program: &mut Program,
     clock: &Clock,
-) {
+) -> bool {
     if !camera.has_new_frame() {
-        return;
+        return false;
     }
     let grabbed = camera.with_latest(|f| {
         process_frame(
@@ -155,9 +195,13 @@ fn grab_frame(
     match grabbed {
         Ok(Some((ticket, Ok(detections)))) => {
             program.on_camera_frame(clock.micros(), ticket.sequence, &detections);
+            true
         }
-        Ok(Some((_, Err(e)))) => defmt::warn!("camera frame rejected: {}", e),
-        Ok(None) | Err(_) => {}
+        Ok(Some((_, Err(e)))) => {
+            defmt::warn!("camera frame rejected: {}", e);
+            false
+        }
+        Ok(None) | Err(_) => false,
     }
 }
 

@@ -46,16 +46,41 @@ const fn gcd(mut a: u32, mut b: u32) -> u32 {
     a
 }
 
-impl<B: RegisterBus> Clint<B> {
-    /// A timer whose `mtime` counts at `hz` (must be nonzero).
-    pub const fn new(bus: B, hz: u32) -> Self {
+/// A timer rate and its microsecond ratio, worked out once (a `const` on the boards: the
+/// reduction is a loop of divisions).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rate {
+    hz: u32,
+    num: u32,
+    den: u32,
+}
+
+impl Rate {
+    /// `mtime` counting at `hz` (0 is taken as 1).
+    pub const fn of(hz: u32) -> Self {
         let hz = if hz == 0 { 1 } else { hz };
         let g = gcd(1_000_000, hz);
         Self {
-            bus,
             hz,
             num: 1_000_000 / g,
             den: hz / g,
+        }
+    }
+}
+
+impl<B: RegisterBus> Clint<B> {
+    /// A timer whose `mtime` counts at `hz` (must be nonzero).
+    pub const fn new(bus: B, hz: u32) -> Self {
+        Self::with_rate(bus, Rate::of(hz))
+    }
+
+    /// A timer whose `mtime` counts at `rate`.
+    pub const fn with_rate(bus: B, rate: Rate) -> Self {
+        Self {
+            bus,
+            hz: rate.hz,
+            num: rate.num,
+            den: rate.den,
             last: Cell::new(Conversion {
                 ticks: 0,
                 micros: 0,
@@ -79,6 +104,11 @@ impl<B: RegisterBus> Clint<B> {
                 return (u64::from(hi) << 32) | u64::from(lo);
             }
         }
+    }
+
+    /// The low 32 bits of `mtime` (one register read: for time stamps in interrupt handlers).
+    pub fn ticks_lo(&self) -> u32 {
+        self.bus.read32(reg::MTIME)
     }
 
     /// Current time in microseconds since reset (`floor(ticks * 1e6 / hz)`, exactly).
@@ -121,6 +151,47 @@ impl<B: RegisterBus> Clint<B> {
     /// Ticks in `us` microseconds.
     pub fn ticks_from_micros(&self, us: u64) -> u64 {
         micros_to_ticks(us, self.hz)
+    }
+
+    /// The first tick at which the time reads `us` microseconds or later (at once when that
+    /// is already past): the wakeup for a deadline. Like [`Clint::micros`] it works from the
+    /// last conversion with 32-bit arithmetic when the deadline is less than a few hundred
+    /// milliseconds after it.
+    pub fn wakeup_tick(&self, us: u64) -> u64 {
+        let last = self.last.get();
+        // At `last`: ticks * num = micros * den + rem. Wanted: the least T >= last.ticks with
+        // T * num >= us * den, i.e. (T - last.ticks) * num >= d * den - rem.
+        let Some(d) = us.checked_sub(last.micros) else {
+            return last.ticks;
+        };
+        if let Some(need) = u32::try_from(d).ok().and_then(|d| d.checked_mul(self.den)) {
+            return last.ticks + u64::from(need.saturating_sub(last.rem).div_ceil(self.num));
+        }
+        let t = micros_to_ticks(us, self.hz);
+        if ticks_to_micros(t, self.hz) < us {
+            t + 1
+        } else {
+            t
+        }
+    }
+
+    /// The time in microseconds (as [`Clint::micros`] gives it) of a tick in the recent past,
+    /// known by the low 32 bits of `mtime` (an interrupt handler's stamp).
+    pub fn micros_of_recent(&self, tick_lo: u32) -> u64 {
+        let now = self.ticks();
+        let now_us = self.micros_at(now);
+        let age = (now as u32).wrapping_sub(tick_lo);
+        if age > u32::MAX / 2 {
+            // From the future: a stamp cannot be, so take it as now.
+            return now_us;
+        }
+        let last = self.last.get();
+        // micros(now - age) = floor((now_us * den + rem - age * num) / den).
+        match age.checked_mul(self.num) {
+            Some(a) if a <= last.rem => now_us,
+            Some(a) => now_us.saturating_sub(u64::from((a - last.rem).div_ceil(self.den))),
+            None => ticks_to_micros(now - u64::from(age), self.hz),
+        }
     }
 
     /// Arms the timer interrupt for the moment `mtime` reaches `deadline`.
@@ -208,6 +279,46 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn wakeup_ticks_are_the_first_at_the_deadline(
+            start in 0u64..(1 << 48),
+            ahead in prop_oneof![0u64..2_000_000, 0u64..(1 << 40)],
+            hz in prop_oneof![Just(14_745_600u32), Just(10_000_000u32), 1_000_000u32..200_000_000],
+        ) {
+            let bus = RamBus::new(0xC000);
+            let clint = Clint::new(&bus, hz);
+            let now_us = clint.micros_at(start);
+            let due = now_us + ahead;
+            let t = clint.wakeup_tick(due);
+            prop_assert!(ticks_to_micros(t, hz) >= due, "t {} hz {}", t, hz);
+            if t > start {
+                prop_assert!(ticks_to_micros(t - 1, hz) < due, "not the first: t {} hz {}", t, hz);
+            }
+            // A deadline already past wakes at once.
+            if now_us > 0 {
+                prop_assert!(clint.wakeup_tick(now_us - 1) <= start);
+            }
+        }
+
+        #[test]
+        fn recent_ticks_convert_like_micros(
+            now in (1u64 << 33)..(1 << 48),
+            age in prop_oneof![0u32..20_000_000, any::<u32>()],
+            hz in prop_oneof![Just(14_745_600u32), Just(10_000_000u32), 1_000_000u32..200_000_000],
+        ) {
+            let bus = RamBus::new(0xC000);
+            bus.write32(reg::MTIME, now as u32);
+            bus.write32(reg::MTIME + 4, (now >> 32) as u32);
+            let clint = Clint::new(&bus, hz);
+            let stamp = (now as u32).wrapping_sub(age);
+            let got = clint.micros_of_recent(stamp);
+            if age <= u32::MAX / 2 {
+                prop_assert_eq!(got, ticks_to_micros(now - u64::from(age), hz));
+            } else {
+                prop_assert_eq!(got, ticks_to_micros(now, hz));
+            }
+        }
+
         #[test]
         fn incremental_micros_are_exact(
             start in 0u64..(1 << 48),

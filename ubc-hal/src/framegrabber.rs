@@ -9,7 +9,7 @@
 
 use core::ops::Range;
 use core::sync::atomic::{fence, Ordering};
-use vision::frame::{FrameTicket, HeaderError, HeaderRepr, HEADER_LEN};
+use vision::frame::{field, FrameTicket, HeaderError, HeaderRepr, HEADER_LEN, MAGIC};
 use vision::FrameGeometry;
 
 /// Memory holding a frame-grabber window.
@@ -22,6 +22,14 @@ pub trait WindowMemory {
     }
     /// A fresh copy of the header (volatile reads on the target: the writer changes it).
     fn read_header(&self) -> [u8; HEADER_LEN];
+    /// A fresh read of the little-endian header word at `offset` (a multiple of 4 inside the
+    /// header; 0 otherwise).
+    fn read_word(&self, offset: usize) -> u32 {
+        let h = self.read_header();
+        h.get(offset..offset + 4)
+            .and_then(|w| <[u8; 4]>::try_from(w).ok())
+            .map_or(0, u32::from_le_bytes)
+    }
     /// The bytes of `range` in place, or `None` if the range leaves the window.
     fn bytes(&self, range: Range<usize>) -> Option<&[u8]>;
 }
@@ -72,6 +80,14 @@ impl WindowMemory for MmioWindow {
         out
     }
 
+    fn read_word(&self, offset: usize) -> u32 {
+        if !offset.is_multiple_of(4) || offset + 4 > HEADER_LEN.min(self.len) {
+            return 0;
+        }
+        // SAFETY: as in `read_header`: an aligned word inside the window's header.
+        unsafe { core::ptr::read_volatile((self.base + offset) as *const u32) }
+    }
+
     fn bytes(&self, range: Range<usize>) -> Option<&[u8]> {
         if range.start > range.end || range.end > self.len {
             return None;
@@ -112,6 +128,9 @@ impl<M: WindowMemory + ?Sized> WindowMemory for &M {
     }
     fn read_header(&self) -> [u8; HEADER_LEN] {
         (**self).read_header()
+    }
+    fn read_word(&self, offset: usize) -> u32 {
+        (**self).read_word(offset)
     }
     fn bytes(&self, range: Range<usize>) -> Option<&[u8]> {
         (**self).bytes(range)
@@ -205,8 +224,16 @@ impl<M: WindowMemory> FrameGrabber<M> {
         Ok(h)
     }
 
-    /// Whether a frame newer than the last one used is published (one header read).
+    /// Whether a frame newer than the last one used is published: two word reads when none
+    /// is (the program asks often), the whole header when one may be.
     pub fn has_new_frame(&self) -> bool {
+        if self.memory.read_word(field::MAGIC.start) != u32::from_le_bytes(MAGIC) {
+            return false;
+        }
+        let sequence = self.memory.read_word(field::SEQUENCE.start);
+        if sequence == 0 || sequence == self.last_sequence {
+            return false;
+        }
         matches!(self.header(), Ok(h) if h.sequence != 0 && h.sequence != self.last_sequence)
     }
 

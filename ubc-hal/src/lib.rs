@@ -26,6 +26,7 @@ mod logger;
 pub mod mmio;
 pub mod pci;
 pub mod plic;
+pub mod ring;
 pub mod serial;
 pub mod uart;
 

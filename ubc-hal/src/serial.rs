@@ -1,5 +1,5 @@
-//! Interrupt-driven serial port on a 16550: RX and TX rings (heapless SPSC queues) shared
-//! between the interrupt handler and the program.
+//! Interrupt-driven serial port on a 16550: RX and TX rings (single-producer single-consumer,
+//! [`crate::ring`]) shared between the interrupt handler and the program.
 //!
 //! The RX interrupt moves bytes from the device FIFO into the RX ring. When the ring is full
 //! the handler stops taking bytes and masks the RX interrupt instead of dropping them; the
@@ -11,18 +11,26 @@
 //!
 //! Sizing: at 115200 baud 8N1 a byte takes 86.8 us, so 50 ms of work without draining lets
 //! 576 bytes arrive; [`RX_RING_SIZE`] leaves room for 7 such periods.
+//!
+//! Frame ends: a port can be told which byte ends a frame on its line ([`FrameStamping`]).
+//! The handler then notes when each such byte arrived on the line, in timer ticks, worked
+//! back from the moment it runs: the interrupt at the FIFO's trigger level comes as the last
+//! byte arrives, the receive timeout four character times after it, and bytes in one batch
+//! arrived back to back. [`Port::read_frame`] hands out a frame with that time, and
+//! [`Port::frame_end_pending`] tells the program that a whole frame waits, so it can sleep
+//! through the interrupts in between.
 
 use crate::cpu;
 use crate::mmio::RegisterBus;
-use crate::uart::{Config, ConfigError, Ier, Ns16550, FIFO_DEPTH};
+use crate::ring::{Consumer, Producer, Ring};
+use crate::uart::{Config, ConfigError, Ier, IrqId, Ns16550, FIFO_DEPTH};
 use core::cell::{RefCell, UnsafeCell};
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use critical_section::Mutex;
-use heapless::spsc::{Consumer, Producer, Queue};
 
-/// Slots in each port's RX ring (it holds one byte fewer than this).
+/// Bytes each port's RX ring holds.
 pub const RX_RING_SIZE: usize = 4096;
-/// Slots in each port's TX ring (it holds one byte fewer than this). Half the RX ring: the
+/// Bytes each port's TX ring holds. Half the RX ring: the
 /// program writes short messages, and 2 KiB still drains faster than the line (115200 baud
 /// moves 576 bytes in a 50 ms compute window).
 pub const TX_RING_SIZE: usize = 2048;
@@ -30,6 +38,32 @@ pub const TX_RING_SIZE: usize = 2048;
 pub const RX_RESUME_SPACE: usize = 4 * FIFO_DEPTH;
 /// Bound on interrupt service rounds per interrupt, so a misbehaving device cannot hang it.
 const MAX_SERVICE_ROUNDS: usize = 8;
+/// Frame ends remembered per port until the program reads them; the ends of frames beyond
+/// that are not stamped ([`Port::read_frame`] then says so).
+pub const FRAME_END_SLOTS: usize = 32;
+/// Frame ends stamped in one service round (a FIFO's worth of bytes); more are not stamped.
+const ENDS_PER_ROUND: usize = 4;
+/// Character times of silence after which a 16550 raises its receive timeout.
+const RX_TIMEOUT_CHARS: u32 = 4;
+
+/// How a port's handler stamps the ends of frames.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameStamping {
+    /// The byte that ends a frame on this line (0x00 for COBS, 0xFF for the LBC protocol).
+    pub delimiter: u8,
+    /// Reads the low 32 bits of the free-running timer.
+    pub now: fn() -> u32,
+    /// Timer ticks one character (start, 8 data bits, stop) takes on the line.
+    pub char_ticks: u32,
+}
+
+/// A frame end seen by the handler: the delimiter's position in the port's byte count and
+/// the timer tick at which it arrived.
+#[derive(Debug, Clone, Copy)]
+struct FrameEnd {
+    pos: u32,
+    tick: u32,
+}
 
 /// Errors reported to readers of a [`Port`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -114,15 +148,22 @@ fn bump(counter: &AtomicU32, by: u32) {
 struct IsrHalf<B: 'static> {
     uart: Ns16550<B>,
     ier: Ier,
-    rx: Producer<'static, u8>,
-    tx: Consumer<'static, u8>,
+    rx: Producer<u8, RX_RING_SIZE>,
+    tx: Consumer<u8, TX_RING_SIZE>,
+    ends: Producer<FrameEnd, FRAME_END_SLOTS>,
+    stamping: Option<FrameStamping>,
+    /// Bytes moved into the RX ring so far (wrapping): the position of the next one.
+    rx_pos: u32,
 }
 
 /// The static state of one interrupt-driven port. Place it in a `static`, then
 /// [`PortState::open`] it once and call [`PortState::on_interrupt`] from its interrupt.
 pub struct PortState<B: 'static> {
-    rx: UnsafeCell<Queue<u8, RX_RING_SIZE>>,
-    tx: UnsafeCell<Queue<u8, TX_RING_SIZE>>,
+    rx: UnsafeCell<Ring<u8, RX_RING_SIZE>>,
+    tx: UnsafeCell<Ring<u8, TX_RING_SIZE>>,
+    ends: UnsafeCell<Ring<FrameEnd, FRAME_END_SLOTS>>,
+    /// One past the position of the last frame delimiter received (0: none yet).
+    end_mark: AtomicU32,
     taken: AtomicBool,
     isr: Mutex<RefCell<Option<IsrHalf<B>>>>,
     rx_held: AtomicBool,
@@ -130,9 +171,9 @@ pub struct PortState<B: 'static> {
     counters: Counters,
 }
 
-// SAFETY: the queues in the `UnsafeCell`s are only reached through the producer/consumer
-// halves that `open` creates exactly once (guarded by `taken`); the heapless SPSC halves are
-// designed to be used from two contexts at once. Everything else is atomics or behind a
+// SAFETY: the rings in the `UnsafeCell`s (bytes and frame ends) are only reached through the
+// producer/consumer halves that `open` creates exactly once (guarded by `taken`); the SPSC
+// halves are designed to be used from two contexts at once. Everything else is atomics or behind a
 // critical-section mutex.
 unsafe impl<B: Send> Sync for PortState<B> {}
 
@@ -156,8 +197,10 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
     /// An unopened port.
     pub const fn new() -> Self {
         Self {
-            rx: UnsafeCell::new(Queue::new()),
-            tx: UnsafeCell::new(Queue::new()),
+            rx: UnsafeCell::new(Ring::new(0)),
+            tx: UnsafeCell::new(Ring::new(0)),
+            ends: UnsafeCell::new(Ring::new(FrameEnd { pos: 0, tick: 0 })),
+            end_mark: AtomicU32::new(0),
             taken: AtomicBool::new(false),
             isr: Mutex::new(RefCell::new(None)),
             rx_held: AtomicBool::new(false),
@@ -188,6 +231,8 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
         let (rx_prod, rx_cons) = unsafe { &mut *self.rx.get() }.split();
         // SAFETY: as above.
         let (tx_prod, tx_cons) = unsafe { &mut *self.tx.get() }.split();
+        // SAFETY: as above.
+        let (ends_prod, ends_cons) = unsafe { &mut *self.ends.get() }.split();
         let mut ier = Ier(0);
         ier.set_rx_available(true);
         ier.set_line_status(true);
@@ -203,6 +248,9 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
                 ier,
                 rx: rx_prod,
                 tx: tx_cons,
+                ends: ends_prod,
+                stamping: None,
+                rx_pos: 0,
             });
             true
         });
@@ -213,6 +261,9 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
             state: self,
             rx: rx_cons,
             tx: tx_prod,
+            ends: ends_cons,
+            delimiter: None,
+            read_pos: 0,
         })
     }
 
@@ -227,23 +278,28 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
                 return;
             };
             for _ in 0..MAX_SERVICE_ROUNDS {
-                let Some(_) = h.uart.iir().pending() else {
+                let Some(cause) = h.uart.iir().pending() else {
                     break;
                 };
                 let _ = h.uart.msr();
-                self.service_rx(h);
+                self.service_rx(h, cause == IrqId::RxTimeout);
                 self.service_tx(h);
             }
         });
     }
 
-    fn service_rx(&self, h: &mut IsrHalf<B>) {
+    /// Moves the FIFO's bytes into the ring; `timed_out` when the receive timeout (not the
+    /// trigger level) raised the interrupt.
+    fn service_rx(&self, h: &mut IsrHalf<B>, timed_out: bool) {
         if !h.ier.rx_available() {
             // Held: only record line errors.
             self.record_line_status(h.uart.lsr());
             return;
         }
-        let mut taken = 0;
+        let delimiter = h.stamping.map(|s| s.delimiter);
+        let mut ends = [0u32; ENDS_PER_ROUND];
+        let mut n_ends = 0;
+        let mut taken: u32 = 0;
         loop {
             let lsr = h.uart.lsr();
             self.record_line_status(lsr);
@@ -257,10 +313,38 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
                 bump(&self.counters.rx_ring_full, 1);
                 break;
             }
+            let byte = h.uart.read_rbr();
             // The queue has room (checked above), so this cannot fail.
-            let _ = h.rx.enqueue(h.uart.read_rbr());
+            let _ = h.rx.enqueue(byte);
+            if Some(byte) == delimiter {
+                if let Some(slot) = ends.get_mut(n_ends) {
+                    *slot = taken;
+                    n_ends += 1;
+                }
+            }
             taken += 1;
         }
+        if let (Some(s), Some(last)) = (h.stamping, ends.get(..n_ends).and_then(|e| e.last())) {
+            // The last byte taken arrived now (trigger level) or one timeout ago.
+            let now = (s.now)();
+            let newest = if timed_out {
+                now.wrapping_sub(RX_TIMEOUT_CHARS.wrapping_mul(s.char_ticks))
+            } else {
+                now
+            };
+            for &k in ends.get(..n_ends).unwrap_or_default() {
+                let before = taken - 1 - k;
+                let _ = h.ends.enqueue(FrameEnd {
+                    pos: h.rx_pos.wrapping_add(k),
+                    tick: newest.wrapping_sub(before.wrapping_mul(s.char_ticks)),
+                });
+            }
+            self.end_mark.store(
+                h.rx_pos.wrapping_add(*last).wrapping_add(1),
+                Ordering::Release,
+            );
+        }
+        h.rx_pos = h.rx_pos.wrapping_add(taken);
         bump(&self.counters.rx_bytes, taken);
     }
 
@@ -317,8 +401,12 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
 /// ring. Implements embedded-io and embedded-hal-nb serial traits.
 pub struct Port<B: 'static> {
     state: &'static PortState<B>,
-    rx: Consumer<'static, u8>,
-    tx: Producer<'static, u8>,
+    rx: Consumer<u8, RX_RING_SIZE>,
+    tx: Producer<u8, TX_RING_SIZE>,
+    ends: Consumer<FrameEnd, FRAME_END_SLOTS>,
+    delimiter: Option<u8>,
+    /// Bytes taken from the RX ring so far (wrapping): the position of the next one.
+    read_pos: u32,
 }
 
 impl<B> core::fmt::Debug for Port<B> {
@@ -346,9 +434,29 @@ impl<B: RegisterBus + Send + 'static> Port<B> {
         self.tx.capacity() - self.tx.len()
     }
 
+    /// Stamps the ends of frames on this line from now on (see the module documentation).
+    pub fn stamp_frames(&mut self, stamping: FrameStamping) {
+        self.delimiter = Some(stamping.delimiter);
+        self.state.with_isr(|h| h.stamping = Some(stamping));
+    }
+
+    /// Whether a frame delimiter arrived that has not been read yet (always false without
+    /// [`Port::stamp_frames`]).
+    pub fn frame_end_pending(&self) -> bool {
+        let mark = self.state.end_mark.load(Ordering::Acquire);
+        // The mark is one past the last delimiter: pending while reading has not passed it.
+        self.delimiter.is_some() && (mark.wrapping_sub(self.read_pos) as i32) > 0
+    }
+
+    fn pop(&mut self) -> Option<u8> {
+        let b = self.rx.dequeue()?;
+        self.read_pos = self.read_pos.wrapping_add(1);
+        Some(b)
+    }
+
     /// Takes one received byte.
     pub fn read_byte(&mut self) -> Option<u8> {
-        let byte = self.rx.dequeue();
+        let byte = self.pop();
         self.resume_rx_if_room();
         byte
     }
@@ -357,7 +465,7 @@ impl<B: RegisterBus + Send + 'static> Port<B> {
     pub fn read_available(&mut self, buf: &mut [u8]) -> usize {
         let mut n = 0;
         for slot in buf.iter_mut() {
-            let Some(b) = self.rx.dequeue() else {
+            let Some(b) = self.pop() else {
                 break;
             };
             *slot = b;
@@ -365,6 +473,43 @@ impl<B: RegisterBus + Send + 'static> Port<B> {
         }
         self.resume_rx_if_room();
         n
+    }
+
+    /// Takes received bytes up to and including the first frame delimiter, at most
+    /// `buf.len()`, without waiting. Returns how many, and when the bytes end with a
+    /// delimiter whose arrival was stamped, the timer tick (low 32 bits) it arrived at.
+    pub fn read_frame(&mut self, buf: &mut [u8]) -> (usize, Option<u32>) {
+        let mut n = 0;
+        let mut end = None;
+        for slot in buf.iter_mut() {
+            let Some(b) = self.pop() else {
+                break;
+            };
+            *slot = b;
+            n += 1;
+            if Some(b) == self.delimiter {
+                end = self.end_tick(self.read_pos.wrapping_sub(1));
+                break;
+            }
+        }
+        self.resume_rx_if_room();
+        (n, end)
+    }
+
+    /// The stamp of the delimiter at `pos`, dropping stamps of delimiters read without one.
+    fn end_tick(&mut self, pos: u32) -> Option<u32> {
+        while let Some(e) = self.ends.peek() {
+            let ahead = e.pos.wrapping_sub(pos) as i32;
+            if ahead > 0 {
+                return None;
+            }
+            let tick = e.tick;
+            self.ends.dequeue();
+            if ahead == 0 {
+                return Some(tick);
+            }
+        }
+        None
     }
 
     /// Queues as much of `bytes` as fits without waiting; returns how many.
@@ -625,7 +770,7 @@ mod tests {
     fn full_ring_holds_the_receiver_and_loses_nothing() {
         let (model, state, mut port) = open();
         let data: Vec<u8> = (0..RX_RING_SIZE + 40).map(|i| (i % 251) as u8).collect();
-        let cap = RX_RING_SIZE - 1;
+        let cap = RX_RING_SIZE;
         deliver(model, state, &data[..cap]);
         assert_eq!(port.rx_len(), cap);
         // The next bytes cannot go into the ring: the handler masks RX instead of dropping.
@@ -698,7 +843,7 @@ mod tests {
         let (model, _state, mut port) = open();
         model.s.lock().unwrap().tx_stalled = true;
         let data = vec![0x55u8; TX_RING_SIZE + 10];
-        assert_eq!(port.write_available(&data), TX_RING_SIZE - 1);
+        assert_eq!(port.write_available(&data), TX_RING_SIZE);
         assert_eq!(
             embedded_hal_nb::serial::Write::write(&mut port, 1),
             Err(nb::Error::WouldBlock)
@@ -712,6 +857,98 @@ mod tests {
         port.flush_polled();
         assert_eq!(model.sent(), b"last words");
         assert!(port.tx_idle());
+    }
+
+    static NOW: AtomicU32 = AtomicU32::new(0);
+
+    fn stamped(delimiter: u8) -> (&'static UartModel, &'static PortState<Bus>, Port<Bus>) {
+        let (model, state, mut port) = open();
+        port.stamp_frames(FrameStamping {
+            delimiter,
+            now: || NOW.load(Ordering::Relaxed),
+            char_ticks: 10,
+        });
+        (model, state, port)
+    }
+
+    fn at(now: u32, model: &UartModel, state: &PortState<Bus>, bytes: &[u8], timeout: bool) {
+        NOW.store(now, Ordering::Relaxed);
+        model.s.lock().unwrap().rx_timeout = timeout;
+        model.receive(bytes);
+        state.on_interrupt();
+    }
+
+    #[test]
+    fn frame_ends_are_stamped_back_from_the_interrupt() {
+        let (model, state, mut port) = stamped(0);
+        assert!(!port.frame_end_pending());
+        // Trigger level: the last byte arrived now, those before it one character apart.
+        at(1000, model, state, b"ab\0cd\0e", false);
+        assert!(port.frame_end_pending());
+        let mut buf = [0u8; 16];
+        assert_eq!(port.read_frame(&mut buf), (3, Some(960)));
+        assert_eq!(&buf[..3], b"ab\0");
+        assert!(port.frame_end_pending());
+        assert_eq!(port.read_frame(&mut buf), (3, Some(990)));
+        assert!(!port.frame_end_pending(), "only a partial frame is left");
+        // Receive timeout: the last byte arrived four characters before the interrupt.
+        at(2000, model, state, b"fg\0", true);
+        assert_eq!(port.read_frame(&mut buf), (4, Some(1960)));
+        assert_eq!(&buf[..4], b"efg\0");
+        assert_eq!(port.read_frame(&mut buf), (0, None));
+    }
+
+    #[test]
+    fn frame_reads_stop_at_the_buffer_and_without_stamping() {
+        let (model, state, mut port) = open();
+        model.receive(b"xy\0z");
+        state.on_interrupt();
+        assert!(!port.frame_end_pending());
+        let mut buf = [0u8; 2];
+        // Without stamping there is no delimiter: plain reads.
+        assert_eq!(port.read_frame(&mut buf), (2, None));
+        let (_, state2, mut port2) = {
+            let (m, s, p) = stamped(0);
+            at(50, m, s, b"12345\0", false);
+            (m, s, p)
+        };
+        let _ = state2;
+        assert_eq!(
+            port2.read_frame(&mut buf),
+            (2, None),
+            "buffer full before the end"
+        );
+        let mut rest = [0u8; 8];
+        assert_eq!(port2.read_frame(&mut rest), (4, Some(50)));
+    }
+
+    #[test]
+    fn stamps_stay_with_their_delimiters_when_reads_bypass_them() {
+        let (model, state, mut port) = stamped(0xFF);
+        at(100, model, state, &[1, 0xFF, 2, 0xFF], false);
+        // Read the first frame without looking at stamps.
+        let mut b = [0u8; 2];
+        assert_eq!(port.read_available(&mut b), 2);
+        let mut buf = [0u8; 8];
+        assert_eq!(port.read_frame(&mut buf), (2, Some(100)));
+    }
+
+    #[test]
+    fn frame_ends_beyond_the_slots_are_read_unstamped() {
+        let (model, state, mut port) = stamped(0);
+        let n = FRAME_END_SLOTS + 5;
+        for k in 0..n {
+            at(1000 * (k as u32 + 1), model, state, &[7, 0], false);
+        }
+        let mut buf = [0u8; 4];
+        for k in 0..n {
+            let want = (k < FRAME_END_SLOTS).then_some(1000 * (k as u32 + 1));
+            assert_eq!(port.read_frame(&mut buf), (2, want), "frame {k}");
+        }
+        // Slots free again: stamping resumes.
+        at(99_000, model, state, &[7, 0], false);
+        assert_eq!(port.read_frame(&mut buf), (2, Some(99_000)));
+        assert!(!port.frame_end_pending());
     }
 
     proptest! {

@@ -392,6 +392,8 @@ pub(crate) mod model {
         pub(crate) thre_irq: bool,
         /// When set, THR never empties (a stalled line).
         pub(crate) tx_stalled: bool,
+        /// When set, waiting bytes report the receive timeout instead of the trigger level.
+        pub(crate) rx_timeout: bool,
     }
 
     #[derive(Debug, Default)]
@@ -428,6 +430,8 @@ pub(crate) mod model {
             let ier = Ier(s.ier);
             if ier.line_status() && s.overrun {
                 0b0110
+            } else if ier.rx_available() && !s.rx.is_empty() && s.rx_timeout {
+                0b1100
             } else if ier.rx_available() && !s.rx.is_empty() {
                 0b0100
             } else if ier.thr_empty() && s.thre_irq && s.tx_fifo == 0 {

@@ -432,17 +432,35 @@ impl Program {
                 self.start_radio(now, id, false, log);
             }
         }
-        let mut buf = [0u8; 32];
+        // The radio first: a state broadcast due now goes to the UART before any input is
+        // looked at, and the schedule learns how long that took (its slot timing).
+        if let Some(m) = self.mac.as_mut() {
+            let sent = m.stats().states_sent;
+            m.poll(now);
+            if m.stats().states_sent != sent {
+                self.flush_radio(radio);
+                let at = clock.now_us();
+                if let Some(m) = self.mac.as_mut() {
+                    m.state_written(at);
+                }
+            }
+        }
+        let mut buf = [0u8; 64];
         let mut budget = RX_BUDGET;
         while budget > 0 {
             let len = budget.min(buf.len());
-            let n = lbc.read(buf.get_mut(..len).unwrap_or_default());
+            let (n, _) = lbc.read_frame(buf.get_mut(..len).unwrap_or_default());
             if n == 0 {
                 break;
             }
             budget -= n;
-            for byte in buf.iter().take(n) {
-                self.feed_lbc(now, core::slice::from_ref(byte), log);
+            // One message at most per call, so its events all fit (see `feed_lbc`).
+            for part in buf
+                .get(..n)
+                .unwrap_or_default()
+                .split_inclusive(|&b| b == lbc_link::header::TERMINATOR)
+            {
+                self.feed_lbc(now, part, log);
             }
         }
         self.feed_lbc(now, &[], log);
@@ -450,13 +468,15 @@ impl Program {
         let mut budget = RX_BUDGET;
         while budget > 0 {
             let len = budget.min(buf.len());
-            let n = radio.read(buf.get_mut(..len).unwrap_or_default());
+            let (n, end_us) = radio.read_frame(buf.get_mut(..len).unwrap_or_default());
             if n == 0 {
                 break;
             }
             budget -= n;
+            // A frame is taken as heard when its delimiter arrived, if the port knows when.
+            let at = end_us.map_or(now, |t| t.min(now));
             match self.mac.as_mut() {
-                Some(m) => m.push_rx(now, buf.get(..n).unwrap_or(&buf)),
+                Some(m) => m.push_rx(at, buf.get(..n).unwrap_or(&buf)),
                 None => self.counters.radio_rx_dropped += n as u32,
             }
         }
@@ -514,9 +534,17 @@ impl Program {
     // ----- LBC side ---------------------------------------------------------------------
 
     fn feed_lbc<S: LogSink + ?Sized>(&mut self, now: u64, bytes: &[u8], log: &mut S) {
+        // The events the program acts on: a message's outcome and a timeout, so one call
+        // with at most one message end yields at most two. Noise and stray messages are
+        // counted by the client's statistics.
         let mut events: Vec<LinkEvent, 4> = Vec::new();
         self.client.poll(Instant(now), bytes, |e| {
-            let _ = events.push(e);
+            if matches!(
+                e,
+                LinkEvent::Done { .. } | LinkEvent::Failed { .. } | LinkEvent::Stream(_)
+            ) {
+                let _ = events.push(e);
+            }
         });
         // Oldest first: reversed, then popped from the end.
         events.reverse();
@@ -1284,6 +1312,10 @@ impl Program {
             }
             self.lbc_tx_pos += n;
         }
+        self.flush_radio(radio);
+    }
+
+    fn flush_radio<R: BytePort + ?Sized>(&mut self, radio: &mut R) {
         loop {
             if self.radio_tx_pos == self.radio_tx_len {
                 self.radio_tx_len = match self.mac.as_mut() {

@@ -33,6 +33,13 @@ pub trait Clock {
 pub trait BytePort {
     /// Moves received bytes into `buf`; returns how many.
     fn read(&mut self, buf: &mut [u8]) -> usize;
+    /// Moves received bytes into `buf`, stopping after the first frame delimiter of the
+    /// line; returns how many, and when they end with a delimiter whose arrival on the line
+    /// the port knows, that time (the [`Clock`]'s microseconds). Ports that do not track
+    /// frames read as [`BytePort::read`] does.
+    fn read_frame(&mut self, buf: &mut [u8]) -> (usize, Option<u64>) {
+        (self.read(buf), None)
+    }
     /// Queues bytes for transmission; returns how many were taken.
     fn write(&mut self, bytes: &[u8]) -> usize;
 }

@@ -9,7 +9,7 @@ use crate::exit::TestDevice;
 use crate::framegrabber::{FrameGrabber, MmioWindow};
 use crate::mmio::Mmio;
 use crate::plic::Plic;
-use crate::serial::{OpenError, Port, PortState};
+use crate::serial::{FrameStamping, OpenError, Port, PortState};
 use crate::uart::{Config, Ns16550};
 use core::sync::atomic::{AtomicBool, Ordering};
 
@@ -120,8 +120,26 @@ pub struct Board {
 
 /// The CLINT. Reading time is harmless from anywhere (e.g. log timestamps).
 pub fn clock() -> Clock {
+    const RATE: crate::clint::Rate = crate::clint::Rate::of(TIMEBASE_HZ);
     // SAFETY: the CLINT's register block on the softcore SoC.
-    Clint::new(unsafe { Mmio::new(map::CLINT) }, TIMEBASE_HZ)
+    Clint::with_rate(unsafe { Mmio::new(map::CLINT) }, RATE)
+}
+
+/// The low word of the timer, for the serial ports' frame stamps (one register read).
+fn timer_lo() -> u32 {
+    // SAFETY: the CLINT's register block on this board.
+    crate::mmio::RegisterBus::read32(&unsafe { Mmio::new(map::CLINT) }, crate::clint::reg::MTIME)
+}
+
+/// How a port of this board stamps the frames that `delimiter` ends on its 115200 baud line
+/// (see [`Port::stamp_frames`]).
+pub fn frame_stamping(delimiter: u8) -> FrameStamping {
+    FrameStamping {
+        delimiter,
+        now: timer_lo,
+        // 10 bits a character.
+        char_ticks: TIMEBASE_HZ / (crate::uart::Config::default().baud / 10),
+    }
 }
 
 /// The exit device, for panic and fault paths that own nothing.
