@@ -5,9 +5,11 @@
 //! line, or the next look at the frame grabber.
 //!
 //! The processor's time is the car's budget: the UARTs' interrupts move bytes into rings
-//! without waking the program, which runs only when a frame is complete (the serial driver
-//! marks frame delimiters and when they arrived), when it has something due, or when a ring
-//! fills up; a look at the frame grabber that finds nothing new costs two word reads.
+//! without waking the program, which runs when a frame from the LBC is complete, when a radio
+//! frame has waited [`RADIO_BATCH_US`] (so a poll takes several of the many state broadcasts
+//! of a fleet at once; the serial driver stamps each with its arrival, so its time is exact
+//! however late it is read), when something is due, or when a ring fills up. A look at the
+//! frame grabber that finds nothing new costs two word reads.
 
 use crate::board::{self, Board, Camera, Clock, Uart};
 use ubc_app::program::{self, BytePort, Config, LogEvent, LogSink, Program};
@@ -24,6 +26,10 @@ const CAMERA_POLL_US: u64 = 10_000;
 /// Bytes waiting in a receive ring that wake the program even without a whole frame (noise
 /// or a frame longer than any the protocols use), well before the ring fills.
 const RX_WAKE_BYTES: usize = 1024;
+/// Longest a whole radio frame waits before the program reads it, in microseconds: a quarter
+/// of a 30 Hz period, far below any reply timeout, well within the serial driver's
+/// [`ubc_hal::serial::FRAME_END_SLOTS`] stamps.
+const RADIO_BATCH_US: u64 = 8_000;
 
 struct BoardClock<'a>(&'a Clock);
 
@@ -112,9 +118,24 @@ impl LogSink for Defmt {
     }
 }
 
-/// Whether a port holds a whole frame, or enough bytes to look at anyway.
-fn has_input(port: Option<&Uart>) -> bool {
-    port.is_some_and(|u| u.frame_end_pending() || u.rx_len() >= RX_WAKE_BYTES)
+/// Whether the LBC port holds a whole frame, or enough bytes to look at anyway.
+fn lbc_input(port: &Uart) -> bool {
+    port.frame_end_pending() || port.rx_len() >= RX_WAKE_BYTES
+}
+
+/// Ticks until the radio port's input must be read (0: now), `None` while it holds no whole
+/// frame.
+fn radio_wait(port: Option<&mut Uart>, now_lo: u32, batch: u32) -> Option<u32> {
+    let port = port?;
+    if port.rx_len() >= RX_WAKE_BYTES {
+        return Some(0);
+    }
+    if !port.frame_end_pending() {
+        return None;
+    }
+    // A frame end that lost its stamp (more frames than stamps) is read at once.
+    let age = port.oldest_frame_end().map_or(batch, |t| now_lo.wrapping_sub(t));
+    Some(batch.saturating_sub(age))
 }
 
 /// Runs the program forever.
@@ -126,6 +147,7 @@ pub fn run(board: Board) -> ! {
     if let Some(r) = radio.as_mut() {
         r.stamp_frames(board::frame_stamping(radio_mac::wire::DELIMITER));
     }
+    let batch = u32::try_from(clock.ticks_from_micros(RADIO_BATCH_US)).unwrap_or(u32::MAX);
     let mut camera = board.camera;
     let mut detector = BlobDetector::new();
     let mut program = Program::new(Config::default());
@@ -136,7 +158,8 @@ pub fn run(board: Board) -> ! {
     let mut program_due = start;
     loop {
         let mut now = clock.micros();
-        if has_input(Some(&lbc)) || has_input(radio.as_ref()) || now >= program_due {
+        let radio_now = radio_wait(radio.as_mut(), clock.ticks_lo(), batch) == Some(0);
+        if radio_now || lbc_input(&lbc) || now >= program_due {
             program.poll(
                 &BoardClock(&clock),
                 &mut Port(Some(&mut lbc), &clock),
@@ -159,13 +182,24 @@ pub fn run(board: Board) -> ! {
         }
         let due = program_due.min(next_stats).min(next_camera);
         if due > now {
-            // Interrupts that bring no whole frame go back to sleep here.
+            // Sleep until the deadline, a whole LBC frame, or a radio frame that has waited
+            // its batch time; interrupts that bring neither go back to sleep here.
             let wake = clock.wakeup_tick(due);
-            clock.set_wakeup(wake);
-            let ready =
-                || has_input(Some(&lbc)) || has_input(radio.as_ref()) || clock.ticks() >= wake;
-            while !ready() {
-                cpu::idle_unless(ready);
+            let now_ticks = clock.ticks();
+            let mut armed = u64::MAX;
+            loop {
+                let lo = clock.ticks_lo();
+                let radio_at = radio_wait(radio.as_mut(), lo, batch)
+                    .map(|w| now_ticks.max(clock.ticks()) + u64::from(w));
+                let until = radio_at.map_or(wake, |r| r.min(wake));
+                if lbc_input(&lbc) || clock.ticks() >= until {
+                    break;
+                }
+                if until != armed {
+                    clock.set_wakeup(until);
+                    armed = until;
+                }
+                cpu::idle_unless(|| lbc_input(&lbc) || clock.ticks() >= until);
             }
         }
     }

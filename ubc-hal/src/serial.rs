@@ -448,6 +448,19 @@ impl<B: RegisterBus + Send + 'static> Port<B> {
         self.delimiter.is_some() && (mark.wrapping_sub(self.read_pos) as i32) > 0
     }
 
+    /// The timer tick (low 32 bits) at which the oldest frame end not read yet arrived, when
+    /// it was stamped.
+    pub fn oldest_frame_end(&mut self) -> Option<u32> {
+        while let Some(e) = self.ends.peek() {
+            if (e.pos.wrapping_sub(self.read_pos) as i32) >= 0 {
+                return Some(e.tick);
+            }
+            // Read past without a stamp lookup (a plain read): drop it.
+            self.ends.dequeue();
+        }
+        None
+    }
+
     fn pop(&mut self) -> Option<u8> {
         let b = self.rx.dequeue()?;
         self.read_pos = self.read_pos.wrapping_add(1);
@@ -885,12 +898,15 @@ mod tests {
         // Trigger level: the last byte arrived now, those before it one character apart.
         at(1000, model, state, b"ab\0cd\0e", false);
         assert!(port.frame_end_pending());
+        assert_eq!(port.oldest_frame_end(), Some(960));
         let mut buf = [0u8; 16];
         assert_eq!(port.read_frame(&mut buf), (3, Some(960)));
         assert_eq!(&buf[..3], b"ab\0");
         assert!(port.frame_end_pending());
+        assert_eq!(port.oldest_frame_end(), Some(990));
         assert_eq!(port.read_frame(&mut buf), (3, Some(990)));
         assert!(!port.frame_end_pending(), "only a partial frame is left");
+        assert_eq!(port.oldest_frame_end(), None);
         // Receive timeout: the last byte arrived four characters before the interrupt.
         at(2000, model, state, b"fg\0", true);
         assert_eq!(port.read_frame(&mut buf), (4, Some(1960)));
