@@ -134,7 +134,9 @@ fn radio_wait(port: Option<&mut Uart>, now_lo: u32, batch: u32) -> Option<u32> {
         return None;
     }
     // A frame end that lost its stamp (more frames than stamps) is read at once.
-    let age = port.oldest_frame_end().map_or(batch, |t| now_lo.wrapping_sub(t));
+    let age = port
+        .oldest_frame_end()
+        .map_or(batch, |t| now_lo.wrapping_sub(t));
     Some(batch.saturating_sub(age))
 }
 

@@ -1,14 +1,14 @@
 //! The virtual-time engine: every car's firmware ELF (the `softcore` board build) runs on
 //! `soc-model`, the soft core's cycle-accurate SoC model, so a car's clock is its cycle count
 //! at [`CLOCK_HZ`]. All cars live in this process and are stepped a quantum at a time by a
-//! fixed pool of threads; each car only touches its own state inside a quantum, so the result
-//! is the same for any number of threads.
+//! fixed gang of threads ([`super::gang`]); each car only touches its own state inside a
+//! quantum, so the result is the same for any number of threads.
 
+use super::gang::Gang;
 use super::{
     CarEngine, CarIo, CoreLoad, Failure, FailureKind, FrameWriteError, Nanos, WindowWriter,
 };
 use qemu_harness::{LineDecoder, LogFormat};
-use rayon::prelude::*;
 use soc_model::{Halt, Output, Port, Retired, Soc, Stamped, CLOCK_HZ};
 use std::collections::HashMap;
 use std::fmt;
@@ -100,9 +100,17 @@ struct IssCar {
     failure: Option<Failure>,
     /// World time up to which the car has run.
     ran_to: Nanos,
+    /// The world's traffic for this car during a quantum (swapped in and out around it).
+    io: CarIo,
 }
 
 impl IssCar {
+    fn step(&mut self, until: Nanos) {
+        let mut io = std::mem::take(&mut self.io);
+        self.advance(until, &mut io);
+        self.io = io;
+    }
+
     fn advance(&mut self, until: Nanos, io: &mut CarIo) {
         if self.failure.is_some() {
             io.lbc_in.clear();
@@ -188,18 +196,14 @@ impl WindowWriter for IssCar {
 
 /// The virtual-time engine.
 pub struct IssEngine {
-    cars: Vec<IssCar>,
-    pool: Option<rayon::ThreadPool>,
+    cars: Gang<IssCar>,
 }
 
 impl fmt::Debug for IssEngine {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("IssEngine")
             .field("cars", &self.cars.len())
-            .field(
-                "threads",
-                &self.pool.as_ref().map_or(1, |p| p.current_num_threads()),
-            )
+            .field("threads", &self.cars.threads())
             .finish()
     }
 }
@@ -254,20 +258,12 @@ impl IssEngine {
                 log_format: img.log_format.clone(),
                 failure: None,
                 ran_to: 0,
+                io: CarIo::default(),
             });
         }
-        let pool = if threads > 1 {
-            Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .thread_name(|i| format!("arena-iss-{i}"))
-                    .build()
-                    .map_err(|e| IssError::Threads(e.to_string()))?,
-            )
-        } else {
-            None
-        };
-        Ok(IssEngine { cars, pool })
+        let cars = Gang::new(cars, threads, "arena-iss", IssCar::step)
+            .map_err(|e| IssError::Threads(e.to_string()))?;
+        Ok(IssEngine { cars })
     }
 }
 
@@ -314,7 +310,7 @@ pub fn profile_table(elf: &[u8], cycles: &HashMap<u32, u64>) -> Vec<(u64, f64, S
 impl IssEngine {
     /// Car `k`'s processor profile so far (see [`profile_table`]), if it is profiled.
     pub fn profile(&self, k: usize) -> Option<Vec<(u64, f64, String)>> {
-        let car = self.cars.get(k)?;
+        let car = self.cars.item(k)?;
         let p = car.profile.as_ref()?;
         Some(profile_table(&car.elf, &p.cycles))
     }
@@ -330,28 +326,35 @@ impl CarEngine for IssEngine {
     }
 
     fn advance(&mut self, until: Nanos, io: &mut [CarIo]) {
-        let work = |(car, io): (&mut IssCar, &mut CarIo)| car.advance(until, io);
-        match &self.pool {
-            Some(pool) => pool.install(|| {
-                self.cars
-                    .par_iter_mut()
-                    .zip(io.par_iter_mut())
-                    .for_each(work)
-            }),
-            None => self.cars.iter_mut().zip(io.iter_mut()).for_each(work),
+        for (k, io) in io.iter_mut().enumerate() {
+            if let Some(mut car) = self.cars.item(k) {
+                std::mem::swap(&mut car.io, io);
+            }
+        }
+        self.cars.round(until);
+        for (k, io) in io.iter_mut().enumerate() {
+            if let Some(mut car) = self.cars.item(k) {
+                std::mem::swap(&mut car.io, io);
+            }
         }
     }
 
-    fn failure(&self, k: usize) -> Option<&Failure> {
-        self.cars.get(k)?.failure.as_ref()
+    fn failure(&self, k: usize) -> Option<Failure> {
+        self.cars.item(k)?.failure.clone()
     }
 
-    fn window(&mut self, k: usize) -> Option<&mut dyn WindowWriter> {
-        self.cars.get_mut(k).map(|c| c as &mut dyn WindowWriter)
+    fn with_window(&mut self, k: usize, f: &mut dyn FnMut(&mut dyn WindowWriter)) -> bool {
+        match self.cars.item(k) {
+            Some(mut car) => {
+                f(&mut *car);
+                true
+            }
+            None => false,
+        }
     }
 
     fn core_load(&self, k: usize) -> Option<CoreLoad> {
-        let s = self.cars.get(k)?.soc.stats();
+        let s = self.cars.item(k)?.soc.stats();
         Some(CoreLoad {
             cycles: s.cycles,
             awake_cycles: s.cycles.saturating_sub(s.sleep_cycles),
@@ -360,7 +363,7 @@ impl CarEngine for IssEngine {
     }
 
     fn firmware_log(&self, k: usize) -> Vec<String> {
-        let Some(car) = self.cars.get(k) else {
+        let Some(car) = self.cars.item(k) else {
             return Vec::new();
         };
         let mut dec = LineDecoder::new(&car.log_format);
@@ -374,23 +377,27 @@ impl CarEngine for IssEngine {
     }
 
     fn tap_console(&mut self, on: bool) {
-        for c in &mut self.cars {
-            c.console_tap = on.then(Vec::new);
+        for k in 0..self.cars.len() {
+            if let Some(mut c) = self.cars.item(k) {
+                c.console_tap = on.then(Vec::new);
+            }
         }
     }
 
     fn take_console(&mut self, k: usize, out: &mut Vec<(Nanos, u8)>) {
-        if let Some(tap) = self.cars.get_mut(k).and_then(|c| c.console_tap.as_mut()) {
-            out.append(tap);
+        if let Some(mut c) = self.cars.item(k) {
+            if let Some(tap) = c.console_tap.as_mut() {
+                out.append(tap);
+            }
         }
     }
 
     fn log_format(&self, k: usize) -> Option<Arc<LogFormat>> {
-        self.cars.get(k).map(|c| c.log_format.clone())
+        self.cars.item(k).map(|c| c.log_format.clone())
     }
 
     fn kill(&mut self, k: usize, why: &str) {
-        if let Some(c) = self.cars.get_mut(k) {
+        if let Some(mut c) = self.cars.item(k) {
             if c.failure.is_none() {
                 c.failure = Some(Failure {
                     at: c.ran_to,

@@ -9,6 +9,7 @@
 //! - [`qemu`]: each car in its own QEMU in wall-clock time, bytes exchanged over sockets; the
 //!   world is paced to the wall clock.
 
+pub mod gang;
 pub mod iss;
 pub mod qemu;
 
@@ -138,9 +139,9 @@ pub trait CarEngine: Send {
     /// `k` (configuration order): the engine takes its inputs and fills its outputs.
     fn advance(&mut self, until: Nanos, io: &mut [CarIo]);
     /// Car `k`'s failure, once its firmware has stopped.
-    fn failure(&self, k: usize) -> Option<&Failure>;
-    /// Car `k`'s frame-grabber window, when the car has one.
-    fn window(&mut self, k: usize) -> Option<&mut dyn WindowWriter>;
+    fn failure(&self, k: usize) -> Option<Failure>;
+    /// Runs `f` on car `k`'s frame-grabber window; false when the car has none.
+    fn with_window(&mut self, k: usize, f: &mut dyn FnMut(&mut dyn WindowWriter)) -> bool;
     /// Car `k`'s processor load, for engines that count cycles.
     fn core_load(&self, k: usize) -> Option<CoreLoad>;
     /// Car `k`'s decoded firmware log so far.

@@ -267,16 +267,18 @@ impl CarEngine for QemuEngine {
         }
     }
 
-    fn failure(&self, k: usize) -> Option<&Failure> {
-        self.cars.get(k)?.failure.as_ref()
+    fn failure(&self, k: usize) -> Option<Failure> {
+        self.cars.get(k)?.failure.clone()
     }
 
-    fn window(&mut self, k: usize) -> Option<&mut dyn WindowWriter> {
-        self.cars
-            .get_mut(k)?
-            .ram
-            .as_mut()
-            .map(|r| r as &mut dyn WindowWriter)
+    fn with_window(&mut self, k: usize, f: &mut dyn FnMut(&mut dyn WindowWriter)) -> bool {
+        match self.cars.get_mut(k).and_then(|c| c.ram.as_mut()) {
+            Some(r) => {
+                f(r);
+                true
+            }
+            None => false,
+        }
     }
 
     fn core_load(&self, _k: usize) -> Option<CoreLoad> {

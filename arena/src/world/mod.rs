@@ -253,9 +253,9 @@ impl World {
                 let g = cams[0].geometry();
                 let publishers = (0..ids.len())
                     .map(|k| {
-                        engine
-                            .window(k)
-                            .and_then(|w| WindowPublisher::init(w, &g).ok())
+                        let mut p = None;
+                        engine.with_window(k, &mut |w| p = WindowPublisher::init(w, &g).ok());
+                        p
                     })
                     .collect();
                 let mirror = |id: u8| -> Option<(WindowPublisher, SharedRam)> {
@@ -483,17 +483,19 @@ impl World {
             if self.failed[k] {
                 continue;
             }
-            let (Some(publisher), Some(window)) =
-                (cam.publishers[k].as_mut(), self.engine.window(k))
-            else {
+            let Some(publisher) = cam.publishers[k].as_mut() else {
                 continue;
             };
-            let ok = cam.cams[k]
+            let mut ok = cam.cams[k]
                 .render(&poses[k], &poses, &mut cam.frame)
-                .is_ok()
-                && publisher
-                    .publish(window, &cam.frame, capture / 1000)
-                    .is_ok();
+                .is_ok();
+            let frame = &cam.frame;
+            let written = self.engine.with_window(k, &mut |w| {
+                ok = ok && publisher.publish(w, frame, capture / 1000).is_ok();
+            });
+            if !written {
+                continue;
+            }
             if let Some((p, ram)) = cam.mirrors[k].as_mut() {
                 let _ = p.publish(ram, &cam.frame, capture / 1000);
             }
@@ -603,7 +605,7 @@ impl World {
                 fixes_dropped: self.tracker.dropped[k],
                 radio_state: self.ground.states[k].0,
                 states_heard: self.ground.states[k].1,
-                failure: self.engine.failure(k).cloned(),
+                failure: self.engine.failure(k),
             })
             .collect()
     }
