@@ -46,9 +46,19 @@ impl core::fmt::Display for LoadError {
 
 impl std::error::Error for LoadError {}
 
-/// The PT_LOAD segments of an RV32 ELF image as (RAM byte offset, file bytes); the
-/// zero-filled tails are left to zeroed RAM. The entry point must be [`RAM_BASE`].
-pub(crate) fn segments(elf: &[u8]) -> Result<Vec<(usize, &[u8])>, LoadError> {
+/// A PT_LOAD segment of an image: where its file bytes go in RAM.
+pub(crate) struct Segment<'a> {
+    /// RAM byte offset.
+    pub off: usize,
+    /// The file bytes.
+    pub data: &'a [u8],
+    /// Whether the segment is executable (`PF_X`).
+    pub exec: bool,
+}
+
+/// The PT_LOAD segments of an RV32 ELF image; the zero-filled tails are left to zeroed RAM.
+/// The entry point must be [`RAM_BASE`].
+pub(crate) fn segments(elf: &[u8]) -> Result<Vec<Segment<'_>>, LoadError> {
     use object::read::elf::{ElfFile32, FileHeader, ProgramHeader};
     use object::{Architecture, Object};
     let file = ElfFile32::<object::LittleEndian>::parse(elf)
@@ -82,7 +92,11 @@ pub(crate) fn segments(elf: &[u8]) -> Result<Vec<(usize, &[u8])>, LoadError> {
         if addr < u64::from(RAM_BASE) || off + len > u64::from(RAM_SIZE) {
             return Err(LoadError::OutsideRam { addr, len });
         }
-        out.push((off as usize, data));
+        out.push(Segment {
+            off: off as usize,
+            data,
+            exec: ph.p_flags(endian) & object::elf::PF_X != 0,
+        });
     }
     Ok(out)
 }

@@ -343,6 +343,10 @@ impl Soc {
     /// 32-bit one starting in the upper half of the word before.
     pub(crate) fn forget(&mut self, i: usize) {
         forget_word(&mut self.ops, i);
+        if self.code.as_ref().is_some_and(|c| c.covers_word(i)) {
+            // The shared decoding no longer matches this SoC's RAM: decode privately.
+            self.code = None;
+        }
     }
 
     // ------------------------------------------------------------------ counters

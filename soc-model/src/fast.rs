@@ -289,12 +289,14 @@ impl Soc {
             x,
             ops,
             ram,
+            code,
             stale,
             trace,
             intr_flag,
             retired,
             ..
         } = self;
+        let code = code.as_deref();
         let (Ok(ops), Ok(ram)) = (
             <&mut [u64; RAM_HALVES]>::try_from(&mut ops[..]),
             <&mut [u32; RAM_WORDS]>::try_from(&mut ram[..]),
@@ -310,13 +312,18 @@ impl Soc {
                 break Burst::Slow;
             }
             let idx = (off >> 1) as usize & (RAM_HALVES - 1);
-            let op0 = ops[idx];
-            let op64 = if op0 == 0 {
-                let d = decode_at(fetch_ram(&ram[..], off), pc);
-                ops[idx] = d;
-                d
-            } else {
-                op0
+            let op64 = match code.and_then(|c| c.get(idx)) {
+                Some(op) => op,
+                None => {
+                    let op0 = ops[idx];
+                    if op0 == 0 {
+                        let d = decode_at(fetch_ram(&ram[..], off), pc);
+                        ops[idx] = d;
+                        d
+                    } else {
+                        op0
+                    }
+                }
             };
             let op = op64 as u32;
             let kind = op & 63;
@@ -369,10 +376,14 @@ impl Soc {
                     if addr & sm != 0 || off >= RAM_SIZE {
                         break Burst::Slow;
                     }
+                    let i = (off >> 2) as usize & (RAM_WORDS - 1);
+                    if code.is_some_and(|c| c.covers_word(i)) {
+                        // Into the shared code: the general path stops sharing it.
+                        break Burst::Slow;
+                    }
                     let $v = x[rd];
                     let data: u32 = $data;
                     let lanes: u8 = $lanes;
-                    let i = (off >> 2) as usize & (RAM_WORDS - 1);
                     let old = ram[i];
                     let m = (0..4).fold(0u32, |m, k| {
                         if lanes & (1 << k) != 0 {

@@ -242,6 +242,32 @@ pub(crate) struct AmoEx2 {
     pub intr: bool,
 }
 
+/// Decoded instructions of the executable part of a loaded image, shared by every clone of
+/// the SoC that loaded it (many cars running one firmware decode it once and keep one copy
+/// in the host's caches). A SoC stops using it once anything stores into that part.
+#[derive(Debug)]
+pub(crate) struct SharedCode {
+    /// First RAM halfword covered.
+    first: usize,
+    /// The decoded instruction starting at each halfword from `first` on (see `fast`).
+    ops: Box<[u64]>,
+}
+
+impl SharedCode {
+    /// Whether a store into RAM word `i` changes an instruction this holds (the word's two
+    /// halfwords, or a 32-bit instruction starting in the halfword before them).
+    pub(crate) fn covers_word(&self, i: usize) -> bool {
+        let h = 2 * i;
+        h + 1 >= self.first && h < self.first + self.ops.len() + 1
+    }
+
+    /// The decoded instruction at halfword `h`, if `h` lies in the shared code.
+    #[inline(always)]
+    pub(crate) fn get(&self, h: usize) -> Option<u64> {
+        self.ops.get(h.wrapping_sub(self.first)).copied()
+    }
+}
+
 /// The SoC: core, RAM, frame window and devices, with its input schedule. `Clone` copies the
 /// whole machine (a snapshot); runs are deterministic.
 #[derive(Clone)]
@@ -290,6 +316,8 @@ pub struct Soc {
     pub(crate) ram: Vec<u32>,
     /// Decoded instructions by RAM halfword (0: not decoded); see `fast`.
     pub(crate) ops: Vec<u64>,
+    /// The loaded image's decoded code, while nothing has stored into it.
+    pub(crate) code: Option<std::sync::Arc<SharedCode>>,
     pub(crate) frame: Vec<u32>,
 
     // ---- devices
@@ -371,6 +399,7 @@ impl Soc {
             amo_ex2: None,
             ram: vec![0; RAM_WORDS],
             ops: vec![0; RAM_HALVES],
+            code: None,
             frame: vec![0; FRAME_WORDS],
             clint: Clint::new(),
             plic: Plic::default(),
@@ -400,10 +429,31 @@ impl Soc {
     /// on a fresh SoC). Nothing is written unless every segment fits.
     pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), LoadError> {
         let segs = elf::segments(elf)?;
-        for (off, data) in segs {
-            self.write_ram_bytes(off, data);
+        for seg in &segs {
+            self.write_ram_bytes(seg.off, seg.data);
         }
+        // The executable segments, decoded once for this SoC and its clones.
+        let code = segs
+            .iter()
+            .filter(|s| s.exec && !s.data.is_empty())
+            .map(|s| (s.off / 2, (s.off + s.data.len()).div_ceil(2)))
+            .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+        self.code = code.map(|(first, end)| {
+            let ops = (first..end)
+                .map(|h| {
+                    let off = (h * 2) as u32;
+                    fast::decode_at(exec::fetch_ram(&self.ram, off), RAM_BASE.wrapping_add(off))
+                })
+                .collect();
+            std::sync::Arc::new(SharedCode { first, ops })
+        });
         Ok(())
+    }
+
+    /// Whether this SoC runs its image's code from the decoded copy it shares with its clones
+    /// (until something stores into that code).
+    pub fn shares_code(&self) -> bool {
+        self.code.is_some()
     }
 
     /// Copies `words` into RAM at `addr`.

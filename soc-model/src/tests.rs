@@ -887,3 +887,70 @@ fn amos_on_devices_across_run_boundaries() {
         assert_eq!(run(slice), whole, "slices of {slice}");
     }
 }
+
+/// `p` as the executable segment of an ELF image, loaded (its code shared with clones).
+fn elf_soc(p: &P) -> Soc {
+    let bytes: Vec<u8> = p.0.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let mut s = Soc::new();
+    s.load_elf(&elf(243, RAM_BASE, RAM_BASE, &bytes))
+        .expect("loads");
+    s
+}
+
+#[test]
+fn shared_code_runs_like_private_code() {
+    for seed in 100..110 {
+        let p = random_program(seed, 1500);
+        let mut shared = elf_soc(&p);
+        assert!(shared.shares_code());
+        let clone = shared.clone();
+        let mut private = p.soc();
+        assert!(!private.shares_code());
+        let a = run_all(&mut shared, 2_000_000);
+        let b = run_all(&mut private, 2_000_000);
+        assert_eq!(a.1, b.1, "seed {seed}: records");
+        assert_eq!((a.0, a.2), (b.0, b.2), "seed {seed}: outputs and halt");
+        assert_eq!(shared.stats(), private.stats());
+        // The programs store only into their data area: the code stays shared.
+        assert!(shared.shares_code() && clone.shares_code());
+    }
+}
+
+#[test]
+fn a_store_into_shared_code_is_seen_and_ends_sharing_for_that_soc_only() {
+    // a0 counts a loop of 10; after the first pass the loop patches its own increment from
+    // 1 to 5 (`addi a0, a0, 5`), so the total is 1 + 9 * 5 = 46.
+    let mut p = P::default();
+    p.li(A0, 0).li(T1, 10);
+    let patch_at = p.here() + 16; // after the two two-word loads below
+    p.li(T2, patch_at);
+    p.li(S2, isa::addi(A0, A0, 5));
+    let top = p.here();
+    p.i(isa::addi(A0, A0, 1));
+    p.i(isa::sw(S2, T2, 0));
+    p.i(isa::addi(T1, T1, -1));
+    let off = p.off(top);
+    p.i(isa::bne(T1, 0, off));
+    p.exit_pass();
+    assert_eq!(
+        top, patch_at,
+        "the patched word is the loop's first instruction"
+    );
+    let mut s = elf_soc(&p);
+    let sibling = s.clone();
+    let (_, trace, h) = run_all(&mut s, 100_000);
+    assert_eq!(h, Some(Halt::Exit { value: 0x5555 }));
+    assert_eq!(s.reg(10), 46);
+    assert!(!s.shares_code());
+    assert!(sibling.shares_code(), "a clone keeps the shared decoding");
+    // The same program privately, and on the reference hart.
+    let mut private = p.soc();
+    let (_, trace2, _) = run_all(&mut private, 100_000);
+    assert_eq!(trace, trace2);
+    let mut ram = Ram(vec![0; RAM_WORDS]);
+    ram.0[..p.0.len()].copy_from_slice(&p.0);
+    let mut hart = Hart::new(RAM_BASE);
+    for (k, r) in trace.iter().enumerate() {
+        assert_eq!(r.retire, hart.step(&mut ram), "record {k}");
+    }
+}
