@@ -252,6 +252,9 @@ pub struct StateReport {
     pub medium: MediumStats,
     /// Per car (by index): state frames the ground station heard and missed, whole run.
     pub per_car_at_ground: Vec<(u32, u32)>,
+    /// Per car (by index): the ground station's heartbeats it heard, whole run (the cars
+    /// hold no key, so they count them without verifying).
+    pub beats_per_car: Vec<u32>,
 }
 
 impl StateReport {
@@ -374,12 +377,14 @@ pub fn run_state_experiment(e: &StateExperiment) -> StateReport {
                 .unwrap_or((0, 0))
         })
         .collect();
+    let beats_per_car = sim.cars.iter().map(|c| c.mac.stats().auth_no_key).collect();
     StateReport {
         sent,
         expected: sent * receivers,
         received,
         medium: *sim.medium.stats(),
         per_car_at_ground,
+        beats_per_car,
     }
 }
 

@@ -34,6 +34,8 @@ pub const REPEATS: u8 = 3;
 pub const REPEAT_SPACING_US: u32 = 20_000;
 /// Default heartbeat period.
 pub const HEARTBEAT_US: u32 = 1_000_000;
+/// A ground station heard within this long counts as around (for ground frames).
+pub const GROUND_AROUND_US: u64 = 10_000_000;
 /// Default staleness limit of a neighbour.
 pub const STALE_AFTER_US: u32 = 1_000_000;
 /// Silence after which a peer's duplicate window is forgotten (longer than a full retry run).
@@ -275,6 +277,8 @@ pub struct Stats {
     pub states_sent: u32,
     /// Heartbeats sent.
     pub heartbeats_sent: u32,
+    /// State broadcasts left out in ground frames (see `schedule::GROUND_FRAME_EVERY`).
+    pub ground_frames_kept: u32,
 }
 
 #[derive(Debug, Clone)]
@@ -340,6 +344,9 @@ pub struct Endpoint<const N: usize> {
     pub(crate) state: Option<CarState>,
     state_seq: u8,
     last_state_sent: Option<u64>,
+    /// When a frame from the ground station was last heard (ground frames are kept only
+    /// while one is around).
+    ground_heard: Option<u64>,
     pub(crate) mode: Mode,
     stats: Stats,
 }
@@ -394,6 +401,7 @@ impl<const N: usize> Endpoint<N> {
             state: None,
             state_seq: 0,
             last_state_sent: None,
+            ground_heard: None,
             mode: Mode::default(),
             stats: Stats::default(),
         };
@@ -788,6 +796,9 @@ impl<const N: usize> Endpoint<N> {
             return;
         }
         self.stats.rx_frames += 1;
+        if src == Address::Ground {
+            self.ground_heard = Some(now);
+        }
         let stale = self.stale_after_us;
         match self.neighbours.touch(src, now, stale) {
             Some(n) => {
@@ -818,7 +829,7 @@ impl<const N: usize> Endpoint<N> {
                     n.state = Some((state, now));
                 }
                 if let Some(s) = self.schedule.as_mut() {
-                    s.heard_state(now, id, stale);
+                    s.heard_state(now, id, seq, stale);
                 }
                 self.emit(Event::State {
                     from: id,
@@ -1222,17 +1233,57 @@ impl<const N: usize> Endpoint<N> {
         }
     }
 
+    /// Whether every slot of the frame is taken (fresh cars, this one included), so that a
+    /// ground station that is around gets ground frames
+    /// ([`crate::schedule::GROUND_FRAME_EVERY`]).
+    fn ground_frames_on(&self, now: u64) -> bool {
+        let around = self
+            .ground_heard
+            .is_some_and(|t| now.saturating_sub(t) <= GROUND_AROUND_US);
+        let mut used: u32 = match self.own {
+            Address::Car(id) => 1 << crate::schedule::default_slot(id),
+            _ => 0,
+        };
+        for n in self.neighbours.iter() {
+            if let (Address::Car(id), false) = (n.addr, n.is_stale(now, self.stale_after_us)) {
+                used |= 1 << crate::schedule::default_slot(id);
+            }
+        }
+        (around || self.own == Address::Ground) && used == (1 << crate::schedule::SLOTS) - 1
+    }
+
     fn poll_state(&mut self, now: u64) {
         let (Some(state), Address::Car(id)) = (self.state, self.own) else {
             return;
         };
         let stale = self.stale_after_us;
+        let ground_frames = self.ground_frames_on(now);
         let Some(s) = self.schedule.as_mut() else {
             return;
         };
         s.expire(now, stale);
-        if s.next_due(now) > now {
+        let due = s.next_due(now);
+        if due > now {
             return;
+        }
+        let slot = s.own_slot();
+        if ground_frames && slot < crate::schedule::GROUND_SLOTS {
+            // The frame's number: the reference's count, or this car's own as slot 0's car.
+            let start = (due + s.send_lead_us())
+                .saturating_sub(u64::from(slot) * u64::from(crate::schedule::SLOT_US));
+            let number = match s.reference() {
+                Some(_) => s.frame_number(start),
+                None => Some(self.state_seq),
+            };
+            if number.is_some_and(crate::schedule::is_ground_frame) {
+                // Silent in the ground station's frame; slot 0's car still counts it.
+                s.sent(now);
+                if s.reference().is_none() {
+                    self.state_seq = self.state_seq.wrapping_add(1);
+                }
+                self.stats.ground_frames_kept += 1;
+                return;
+            }
         }
         s.sent(now);
         let frame = Frame::State {
@@ -1260,10 +1311,12 @@ impl<const N: usize> Endpoint<N> {
                 used |= 1 << crate::schedule::default_slot(id);
             }
         }
-        (0..crate::schedule::SLOTS)
+        let free = (0..crate::schedule::SLOTS)
             .filter(|slot| used & (1 << slot) == 0)
             .filter_map(|slot| s.slot_start(slot, now))
-            .min()
+            .min();
+        // Every slot taken: the next ground frame, which the first cars leave silent.
+        free.or_else(|| s.next_ground_frame(now))
     }
 
     fn poll_heartbeat(&mut self, now: u64) {

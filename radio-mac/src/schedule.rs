@@ -41,6 +41,22 @@ pub const OUTLIERS_TO_JUMP: u8 = 4;
 /// Consecutive disagreeing frames after which a car with nobody to follow adopts their phase.
 pub const ROOT_YIELD: u8 = 8;
 
+/// At full occupancy (every slot taken), one frame in this many is a *ground frame*: the cars
+/// in the first [`GROUND_SLOTS`] slots stay silent in it and the ground station sends its
+/// heartbeat there (it has no free slot otherwise, and a heartbeat sent between state frames
+/// collides with them). A frame is known by the state sequence number of the car in slot 0,
+/// which grows by one every frame: a ground frame is one whose number is
+/// `GROUND_FRAME_EVERY - 1` modulo `GROUND_FRAME_EVERY`.
+pub const GROUND_FRAME_EVERY: u8 = 32;
+/// Slots kept silent in a ground frame: the ground station's heartbeat (22 bytes) takes
+/// longer on air than one slot.
+pub const GROUND_SLOTS: u8 = 2;
+
+/// Whether the frame with number `seq` (see [`GROUND_FRAME_EVERY`]) is a ground frame.
+pub fn is_ground_frame(seq: u8) -> bool {
+    seq % GROUND_FRAME_EVERY == GROUND_FRAME_EVERY - 1
+}
+
 /// Largest send lead learned from [`Schedule::written`], in microseconds (a write later than
 /// this after its slot's start is a late frame, not a delay to make up for).
 pub const MAX_SEND_LEAD_US: u32 = 1_000;
@@ -126,6 +142,8 @@ pub struct Schedule {
     last_tx: Option<u64>,
     /// Slot start of the last broadcast sent (its write should have started then).
     last_target: Option<u64>,
+    /// The reference's last state sequence number and the start of the frame it was sent in.
+    ref_frame: Option<(u8, u64)>,
     /// How much earlier than its slot's start a broadcast is due, in 1/16 microseconds.
     lead_x16: u32,
 }
@@ -160,6 +178,7 @@ impl Schedule {
             next_tx: None,
             last_tx: None,
             last_target: None,
+            ref_frame: None,
             lead_x16: 0,
         }
     }
@@ -212,8 +231,51 @@ impl Schedule {
         }
     }
 
-    /// A state broadcast from `src` finished arriving at `now`.
-    pub fn heard_state(&mut self, now: u64, src: CarId, stale_after_us: u64) {
+    /// A state broadcast from `src` with sequence number `seq` finished arriving at `now`.
+    pub fn heard_state(&mut self, now: u64, src: CarId, seq: u8, stale_after_us: u64) {
+        self.follow(now, src, stale_after_us);
+        if self.reference.map(|(r, _)| r) == Some(src) {
+            let back =
+                u64::from(self.latency_us()) + u64::from(default_slot(src)) * u64::from(SLOT_US);
+            self.ref_frame = Some((seq, now.saturating_sub(back)));
+        }
+    }
+
+    fn latency_us(&self) -> u32 {
+        match self.timing {
+            StateTiming::Slotted {
+                time_base: TimeBase::FollowLowest { latency_us },
+                ..
+            } => latency_us,
+            _ => 0,
+        }
+    }
+
+    /// The number of the frame whose slot 0 starts at `start` (see [`GROUND_FRAME_EVERY`]),
+    /// from the reference's sequence numbers; `None` without a reference.
+    pub fn frame_number(&self, start: u64) -> Option<u8> {
+        let (seq, at) = self.ref_frame?;
+        self.reference?;
+        let f = i64::from(FRAME_US);
+        let d = start as i64 - at as i64;
+        let k = (d + d.signum() * f / 2) / f;
+        Some(seq.wrapping_add(k as u8))
+    }
+
+    /// The start of the next ground frame's slot 0 at or after `from`, counting frames by
+    /// the reference's sequence numbers (`None` without a reference or a phase).
+    pub fn next_ground_frame(&self, from: u64) -> Option<u64> {
+        let mut t = self.slot_start(0, from)?;
+        for _ in 0..u32::from(GROUND_FRAME_EVERY) {
+            if is_ground_frame(self.frame_number(t)?) {
+                return Some(t);
+            }
+            t += u64::from(FRAME_US);
+        }
+        None
+    }
+
+    fn follow(&mut self, now: u64, src: CarId, stale_after_us: u64) {
         let StateTiming::Slotted {
             time_base: TimeBase::FollowLowest { latency_us },
             ..
@@ -408,16 +470,16 @@ mod tests {
         let mut s = Schedule::new(id(3), StateTiming::slotted(id(3)));
         // Car 2's frame (slot 1) arrives at 1_000_000: its slot began latency earlier.
         let rx = 1_000_000u64;
-        s.heard_state(rx, id(2), 1_000_000);
+        s.heard_state(rx, id(2), 0, 1_000_000);
         assert_eq!(s.reference(), Some(id(2)));
         let slot1_start = rx - u64::from(DEFAULT_STATE_LATENCY_US);
         let due = s.next_due(rx);
         // Our slot (2) of that frame has passed: the next frame's.
         assert_eq!(due, slot1_start + u64::from(SLOT_US) + u64::from(FRAME_US));
         // A higher ID is ignored, a lower one takes over.
-        s.heard_state(rx + 10, id(5), 1_000_000);
+        s.heard_state(rx + 10, id(5), 0, 1_000_000);
         assert_eq!(s.reference(), Some(id(2)));
-        s.heard_state(rx + 20, id(1), 1_000_000);
+        s.heard_state(rx + 20, id(1), 0, 1_000_000);
         assert_eq!(s.reference(), Some(id(1)));
     }
 
@@ -428,20 +490,20 @@ mod tests {
         let lat = u64::from(DEFAULT_STATE_LATENCY_US);
         // The first frame heard sets the phase of a car that has nobody to follow.
         let t0 = 10 * f + 4 * u64::from(SLOT_US) + lat + 5_000;
-        s.heard_state(t0, id(5), 1_000_000);
+        s.heard_state(t0, id(5), 0, 1_000_000);
         assert!(s.is_locked());
         let epoch = t0 - lat - 4 * u64::from(SLOT_US);
         assert_eq!(s.next_due(t0) % f, epoch % f);
         // A few late frames are ignored.
         for k in 1..u64::from(ROOT_YIELD) {
-            s.heard_state(t0 + k * f + 3_000, id(5), 1_000_000);
+            s.heard_state(t0 + k * f + 3_000, id(5), 0, 1_000_000);
         }
         // Car 6 (slot 5) agrees and resets the count.
-        s.heard_state(t0 + 9 * f + u64::from(SLOT_US), id(6), 1_000_000);
+        s.heard_state(t0 + 9 * f + u64::from(SLOT_US), id(6), 0, 1_000_000);
         assert_eq!(s.next_due(t0 + 9 * f) % f, epoch % f);
         // Persistent disagreement moves the root.
         for k in 10..10 + u64::from(ROOT_YIELD) {
-            s.heard_state(t0 + k * f + 3_000, id(5), 1_000_000);
+            s.heard_state(t0 + k * f + 3_000, id(5), 0, 1_000_000);
         }
         assert_eq!(s.next_due(t0 + 20 * f) % f, (epoch + 3_000) % f);
     }
@@ -466,8 +528,8 @@ mod tests {
         let mut s = Schedule::listener(DEFAULT_STATE_LATENCY_US);
         assert_eq!(s.slot_start(3, 0), None);
         let rx = 500_000u64;
-        s.heard_state(rx, id(126), 1_000_000);
-        s.heard_state(rx + 10, id(7), 1_000_000);
+        s.heard_state(rx, id(126), 0, 1_000_000);
+        s.heard_state(rx + 10, id(7), 0, 1_000_000);
         assert_eq!(s.reference(), Some(id(7)));
         let slot6 = rx + 10 - u64::from(DEFAULT_STATE_LATENCY_US);
         let next = s.slot_start(7, rx + 10).unwrap();
@@ -497,6 +559,25 @@ mod tests {
         s.sent(due);
         s.written(due + 1_000_000);
         assert!(s.send_lead_us() <= u64::from(MAX_SEND_LEAD_US));
+    }
+
+    #[test]
+    fn frames_are_numbered_by_the_reference_and_ground_frames_found() {
+        let mut s = Schedule::new(id(5), StateTiming::slotted(id(5)));
+        assert_eq!(s.next_ground_frame(0), None, "no reference yet");
+        let f = u64::from(FRAME_US);
+        let lat = u64::from(DEFAULT_STATE_LATENCY_US);
+        // Car 1 (slot 0) sent sequence number 20 in the frame starting at 10 * f.
+        s.heard_state(10 * f + lat, id(1), 20, 1_000_000);
+        assert_eq!(s.frame_number(10 * f), Some(20));
+        assert_eq!(s.frame_number(13 * f + 5), Some(23));
+        assert_eq!(s.frame_number(9 * f - 7), Some(19));
+        // Number 31 is the next ground frame: 11 frames on.
+        assert_eq!(s.next_ground_frame(10 * f + 1), Some(21 * f));
+        assert!(is_ground_frame(31) && is_ground_frame(63) && !is_ground_frame(32));
+        // A car that is not the reference does not number frames.
+        s.heard_state(10 * f + lat + 3 * u64::from(SLOT_US), id(4), 200, 1_000_000);
+        assert_eq!(s.frame_number(10 * f), Some(20));
     }
 
     #[test]
