@@ -248,9 +248,12 @@ pub(crate) struct AmoEx2 {
 #[derive(Debug)]
 pub(crate) struct SharedCode {
     /// First RAM halfword covered.
-    first: usize,
-    /// The decoded instruction starting at each halfword from `first` on (see `fast`).
-    ops: Box<[u64]>,
+    pub(crate) first: usize,
+    /// One past the last.
+    pub(crate) end: usize,
+    /// The decoded instruction starting at each RAM halfword (see `fast`), 0 outside
+    /// `first..end`.
+    pub(crate) ops: Box<[u64]>,
 }
 
 impl SharedCode {
@@ -258,13 +261,13 @@ impl SharedCode {
     /// halfwords, or a 32-bit instruction starting in the halfword before them).
     pub(crate) fn covers_word(&self, i: usize) -> bool {
         let h = 2 * i;
-        h + 1 >= self.first && h < self.first + self.ops.len() + 1
+        h + 1 >= self.first && h < self.end + 1
     }
 
     /// The decoded instruction at halfword `h`, if `h` lies in the shared code.
     #[inline(always)]
     pub(crate) fn get(&self, h: usize) -> Option<u64> {
-        self.ops.get(h.wrapping_sub(self.first)).copied()
+        self.ops.get(h).copied().filter(|&op| op != 0)
     }
 }
 
@@ -439,13 +442,14 @@ impl Soc {
             .map(|s| (s.off / 2, (s.off + s.data.len()).div_ceil(2)))
             .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
         self.code = code.map(|(first, end)| {
-            let ops = (first..end)
-                .map(|h| {
-                    let off = (h * 2) as u32;
-                    fast::decode_at(exec::fetch_ram(&self.ram, off), RAM_BASE.wrapping_add(off))
-                })
-                .collect();
-            std::sync::Arc::new(SharedCode { first, ops })
+            // A table over all of RAM (zero, "not shared", outside the code; untouched pages
+            // cost nothing), so the executor looks an instruction up without arithmetic.
+            let mut ops = vec![0u64; RAM_HALVES].into_boxed_slice();
+            for (h, op) in ops.iter_mut().enumerate().take(end).skip(first) {
+                let off = (h * 2) as u32;
+                *op = fast::decode_at(exec::fetch_ram(&self.ram, off), RAM_BASE.wrapping_add(off));
+            }
+            std::sync::Arc::new(SharedCode { first, end, ops })
         });
         Ok(())
     }

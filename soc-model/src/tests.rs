@@ -954,3 +954,33 @@ fn a_store_into_shared_code_is_seen_and_ends_sharing_for_that_soc_only() {
         assert_eq!(r.retire, hart.step(&mut ram), "record {k}");
     }
 }
+
+#[test]
+fn shared_code_untraced_in_odd_slices_runs_like_the_traced_private_run() {
+    // Untraced runs of shared code take their own lean loop: run it in slices of odd
+    // lengths (deadlines falling inside divisions and anywhere else) against the traced run
+    // of the same program from private code.
+    for seed in 200..212 {
+        let p = random_program(seed, 1500);
+        let mut private = p.soc();
+        let (want_out, _, want_halt) = run_all(&mut private, 2_000_000);
+        let mut shared = elf_soc(&p);
+        let mut out = Vec::new();
+        let mut halt = None;
+        let mut t = 0u64;
+        let mut k = 0u64;
+        while t < 2_000_000 && halt.is_none() {
+            k += 1;
+            t = (t + 1 + (k * 7919 + seed) % 97).min(2_000_000);
+            halt = shared.run_until(t, &mut out);
+        }
+        if halt.is_none() {
+            halt = shared.run_until(2_000_000, &mut out);
+        }
+        assert_eq!(halt, want_halt, "seed {seed}");
+        assert_eq!(out, want_out, "seed {seed}: outputs");
+        assert_eq!(shared.stats(), private.stats(), "seed {seed}");
+        assert_eq!(&shared.x[..32], &private.x[..32], "seed {seed}");
+        assert_eq!(shared.pc, private.pc, "seed {seed}");
+    }
+}
