@@ -14,9 +14,7 @@ use radio_mac::{
     Address, CarConfig, CarId, CarMac, CarState, Event, GroundConfig, GroundStation, Key,
     RequestHandle, Role,
 };
-use ubc_app::program::console::{
-    LbcOutcome, ManeuverParams, Notice, Point, Points, Refusal, Reply, Request, Tag,
-};
+use ubc_app::program::console::{LbcOutcome, Notice, Point, Points, Refusal, Reply, Request, Tag};
 use ubc_app::program::{BytePort, Clock, Config, LogEvent, LogSink, Phase, Program, DEFAULT_KEY};
 
 const CAR: u8 = 7;
@@ -672,17 +670,13 @@ fn true_pos(s: &Sim) -> (f64, f64) {
 fn group_goto_drives_there_and_reports_it() {
     let mut s = Sim::new();
     s.bring_up();
-    // A waypoint needs a running formation.
+    // A waypoint needs a running group maneuver.
     assert_eq!(
         s.request(&Request::GroupWaypoint { x: 10, y: 10 }),
-        Reply::Refused(Refusal::NoFormation)
+        Reply::Refused(Refusal::NoGroup)
     );
     let stats_before = s.lbc.stats().commands;
-    let params = ManeuverParams::GoTo {
-        x: 400,
-        y: 560,
-        speed_mm_s: 200,
-    };
+    let params = maneuvers::GoTo::params(400, 560, 200).unwrap();
     assert_eq!(s.request(&Request::GroupStart(params)), Reply::GroupStarted);
     assert!(s.prog.group().active());
     let t0 = s.now;
@@ -734,11 +728,7 @@ fn group_maneuver_avoids_a_neighbour_heard_on_the_radio() {
     s.other = Some(other);
     s.bring_up();
     s.run_ms(500);
-    let params = ManeuverParams::GoTo {
-        x: 300,
-        y: 640,
-        speed_mm_s: 200,
-    };
+    let params = maneuvers::GoTo::params(300, 640, 200).unwrap();
     assert_eq!(s.request(&Request::GroupStart(params)), Reply::GroupStarted);
     let mut closest = f64::MAX;
     let mut avoided = false;
@@ -760,11 +750,7 @@ fn group_maneuver_avoids_a_neighbour_heard_on_the_radio() {
 fn group_maneuver_stops_when_the_user_link_or_the_lbc_is_lost() {
     let mut s = Sim::new();
     s.bring_up();
-    let far = ManeuverParams::GoTo {
-        x: 300,
-        y: 750,
-        speed_mm_s: 250,
-    };
+    let far = maneuvers::GoTo::params(300, 750, 250).unwrap();
     assert_eq!(s.request(&Request::GroupStart(far)), Reply::GroupStarted);
     s.run_ms(800);
     assert!(s.lbc.velocity_estimate_mm_s() > 100.0);
@@ -805,17 +791,14 @@ fn group_start_broadcast_reaches_the_car() {
     s.bring_up();
     // Heard once, so that the user link is up.
     s.status();
-    let params = ManeuverParams::Rendezvous {
-        radius_units: 40,
-        speed_mm_s: 200,
-    };
+    let params = maneuvers::Rendezvous::params(40, 200).unwrap();
     let mut buf = [0u8; 32];
     let n = Request::GroupStart(params).encode(&mut buf).unwrap();
     s.ground
         .command(s.now, Address::Broadcast, Tag::GroupStart as u8, &buf[..n])
         .expect("broadcast");
     assert!(s.run_until(1_000, |s| s.prog.group().active()));
-    assert_eq!(s.prog.group().params(), params);
+    assert_eq!(s.prog.group().law_id(), params.law());
     // Alone, the car is at its own rendezvous point.
     s.run_ms(200);
     let st = s.status();

@@ -9,7 +9,7 @@ use crate::camera_feed::FeedConfig;
 use crate::radio_medium::MediumParams;
 use crate::world::{CarSpec, EngineKind, TrackingParams, WorldConfig, WorldError, MM_PER_UNIT};
 use lbc_emu::{FaultConfig, Pose};
-use maneuvers::{ManeuverParams, Shape};
+use maneuvers::{Circle, Formation, GoTo, ManeuverParams, Rendezvous, Shape};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::fs;
@@ -222,41 +222,32 @@ impl Phase {
             PhaseKind::Goto {
                 speed_mm_s: Some(speed),
                 ..
-            } => self.goto_points(id).first().map(|p| ManeuverParams::GoTo {
-                x: p[0],
-                y: p[1],
-                speed_mm_s: *speed,
-            }),
+            } => self
+                .goto_points(id)
+                .first()
+                .and_then(|p| GoTo::params(p[0], p[1], *speed).ok()),
             PhaseKind::Goto { .. } => None,
             PhaseKind::Formation(f) if f.leader != id && !f.followers.contains(&id) => None,
-            PhaseKind::Formation(f) => Some(ManeuverParams::Formation {
-                shape: f.shape,
-                leader: f.leader,
-                slot: f
-                    .followers
+            PhaseKind::Formation(f) => Formation::params(
+                f.shape,
+                f.leader,
+                f.followers
                     .iter()
                     .position(|&c| c == id)
                     .and_then(|k| u8::try_from(k).ok()),
-                spacing_units: f.spacing_units,
-                speed_mm_s: f.speed_mm_s,
-            }),
+                f.spacing_units,
+                f.speed_mm_s,
+            )
+            .ok(),
             PhaseKind::Rendezvous {
                 radius_units,
                 speed_mm_s,
-            } => Some(ManeuverParams::Rendezvous {
-                radius_units: *radius_units,
-                speed_mm_s: *speed_mm_s,
-            }),
+            } => Rendezvous::params(*radius_units, *speed_mm_s).ok(),
             PhaseKind::Circle {
                 centre,
                 radius_units,
                 speed_mm_s,
-            } => Some(ManeuverParams::Circle {
-                cx: centre[0],
-                cy: centre[1],
-                radius_units: *radius_units,
-                speed_mm_s: *speed_mm_s,
-            }),
+            } => Circle::params(centre[0], centre[1], *radius_units, *speed_mm_s).ok(),
         }
     }
 

@@ -6,7 +6,7 @@ use super::*;
 
 /// Slot offsets of a formation's followers, mm (forward, left), by car index.
 pub(super) fn slot_offsets(f: &FormationPhase, ids: &[u8]) -> Vec<Option<(f64, f64)>> {
-    let law = Formation::new(f.shape, f.leader, None, f.spacing_units, f.speed_mm_s);
+    let law = Formation::with(f.shape, f.leader, None, f.spacing_units, f.speed_mm_s);
     ids.iter()
         .map(|id| {
             f.followers.iter().position(|c| c == id).map(|k| {

@@ -15,9 +15,10 @@ use super::config::Config;
 use super::console::{
     self, flags, LbcOutcome, Notice, Refusal, Reply, Request, Status, Tag, MAX_PAYLOAD,
 };
-use super::group::{lbc_command, Group};
+use super::group::{lbc_command, neighbours, Group, SendGate};
 use super::leds::LedState;
 use super::maneuver::Maneuver;
+use super::user::{self, NoProgram, ProgramInput, UserProgram};
 use super::{BytePort, Clock, LogSink};
 
 /// Stream variables the program always asks for: position (1), steering and velocity (2),
@@ -142,10 +143,16 @@ pub enum LogEvent {
     ManeuverDone,
     /// The maneuver was aborted.
     ManeuverAborted,
-    /// A group maneuver started (law selector of `maneuvers::ManeuverParams::kind`).
+    /// A group maneuver started (the law's ID in the registration list).
     GroupStarted { kind: u8 },
     /// The group maneuver was stopped (request, link loss or a manual LBC command).
     GroupStopped,
+    /// The program loop started.
+    ProgramStarted,
+    /// The program loop finished (it returned `Done`).
+    ProgramDone,
+    /// The program loop was stopped before it finished.
+    ProgramStopped,
 }
 
 /// Program-level counters (statistics page 3).
@@ -206,6 +213,7 @@ pub struct Program {
     maneuver: Maneuver,
     group: Group,
     camera: Camera,
+    user: UserState,
     last_ground_us: Option<u64>,
     user_lost: bool,
     leds_sent: Option<(LedPattern, LedPattern)>,
@@ -221,6 +229,22 @@ pub struct Program {
     radio_tx: [u8; RADIO_TX],
     radio_tx_len: usize,
     radio_tx_pos: usize,
+}
+
+/// The program loop's state (the loop itself is passed to [`Program::poll_with`]).
+#[derive(Debug, Default)]
+struct UserState {
+    /// The firmware has a program loop (set at every poll).
+    present: bool,
+    running: bool,
+    /// Arguments of a start not yet handed to the loop.
+    start: Option<user::Args>,
+    /// A stop not yet told to the loop.
+    stop: bool,
+    /// A STREAM sample arrived since the loop last ran.
+    sample: bool,
+    progress: (u8, u8),
+    gate: SendGate<maneuvers::Command>,
 }
 
 fn ms(v: u32) -> u64 {
@@ -268,6 +292,7 @@ impl Program {
             maneuver: Maneuver::default(),
             group: Group::default(),
             camera: Camera::default(),
+            user: UserState::default(),
             last_ground_us: None,
             user_lost: false,
             leds_sent: None,
@@ -366,7 +391,7 @@ impl Program {
             (v.battery_low, flags::BATTERY_LOW),
             (v.over_temperature, flags::OVER_TEMPERATURE),
             (
-                self.maneuver.active() || self.group.active(),
+                self.maneuver.active() || self.group.active() || self.user.running,
                 flags::MANEUVER,
             ),
             (self.lbc_error(now_us), flags::LBC_ERROR),
@@ -378,6 +403,7 @@ impl Program {
         }
         let (index, len) = match self.maneuver.state() {
             super::ManeuverState::Driving { index } => (index, self.maneuver.points().len() as u8),
+            _ if self.user.running => self.user.progress,
             _ => (0, 0),
         };
         let sat16 = |x: u64| u16::try_from(x).unwrap_or(u16::MAX);
@@ -398,7 +424,7 @@ impl Program {
             bringups: self.counters.bringups.min(0xFFFF) as u16,
             lbc_failures: self.lbc_failures.min(0xFFFF) as u16,
             uptime_s: (now_us.saturating_sub(self.started_us.unwrap_or(now_us)) / 1_000_000) as u16,
-            group_kind: self.group.params().kind(),
+            group_kind: self.group.law_id(),
             group_phase: g.phase.bits(),
             group_converged: g.converged,
             group_error_units: g.error_units,
@@ -424,6 +450,26 @@ impl Program {
         R: BytePort + ?Sized,
         S: LogSink + ?Sized,
     {
+        self.poll_with(clock, lbc, radio, log, &mut NoProgram);
+    }
+
+    /// [`Program::poll`] with a program loop ([`UserProgram`]), which runs once per new
+    /// STREAM sample while the ground station has it started.
+    pub fn poll_with<C, L, R, S, U>(
+        &mut self,
+        clock: &C,
+        lbc: &mut L,
+        radio: &mut R,
+        log: &mut S,
+        program: &mut U,
+    ) where
+        C: Clock + ?Sized,
+        L: BytePort + ?Sized,
+        R: BytePort + ?Sized,
+        S: LogSink + ?Sized,
+        U: UserProgram + ?Sized,
+    {
+        self.user.present = U::PRESENT;
         let now = clock.now_us();
         if self.started_us.is_none() {
             self.started_us = Some(now);
@@ -467,9 +513,63 @@ impl Program {
             self.on_radio(now, ev, log);
         }
         self.timers(now, log);
+        if U::PRESENT {
+            self.run_user(now, program, log);
+        }
         // Commands queued by the handlers above go out in this same poll.
         self.feed_lbc(now, &[], log);
         self.flush(lbc, radio);
+    }
+
+    /// The program loop: hands it a pending start or stop, and runs it at a new sample
+    /// while the car can drive.
+    fn run_user<U, S>(&mut self, now: u64, program: &mut U, log: &mut S)
+    where
+        U: UserProgram + ?Sized,
+        S: LogSink + ?Sized,
+    {
+        if core::mem::take(&mut self.user.stop) {
+            program.stop();
+        }
+        if let Some(args) = self.user.start.take() {
+            program.start(now, &args);
+        }
+        let sample = core::mem::take(&mut self.user.sample);
+        if !(self.user.running && sample && self.phase == Phase::Running && self.drive_enabled) {
+            return;
+        }
+        let v = &self.vehicle;
+        let own = maneuvers::CarPose {
+            x: v.x,
+            y: v.y,
+            heading_mrad: v.heading,
+            velocity_mm_s: v.velocity,
+        };
+        let id = self.mac.as_ref().map_or(0, |m| m.id().get());
+        let others = neighbours(now, self.mac.as_ref().map(CarMac::neighbours));
+        let step = program.step(&ProgramInput {
+            now_us: now,
+            id,
+            own,
+            neighbours: &others,
+        });
+        self.user.progress = program.progress();
+        match step {
+            user::Step::Drive(m) => {
+                let may_send = !self.owned.iter().any(|(_, o)| matches!(o, Owner::Group));
+                if let Some(m) = self.user.gate.offer(now, m, may_send) {
+                    if !self.send(now, lbc_command(m), Owner::Group) {
+                        self.user.gate.reset();
+                    }
+                }
+            }
+            user::Step::Done => {
+                self.user.running = false;
+                let _ = self.send(now, Command::Stop, Owner::Stop);
+                log.log(now, LogEvent::ProgramDone);
+                self.notice(now, Notice::ManeuverDone);
+            }
+        }
     }
 
     /// The time (same clock) at which [`Program::poll`] next has work without new bytes.
@@ -861,6 +961,7 @@ impl Program {
         let id = self.mac.as_ref().map_or(0, |m| m.id().get());
         if s.position.is_some() && self.phase == Phase::Running && self.drive_enabled {
             self.step_group(now, id);
+            self.user.sample = true;
         }
         if let Some(m) = self.mac.as_mut() {
             let v = &self.vehicle;
@@ -922,6 +1023,11 @@ impl Program {
             log.log(now, LogEvent::ManeuverAborted);
         }
         self.stop_group(now, log);
+        if self.user.running {
+            self.user.running = false;
+            self.user.stop = true;
+            log.log(now, LogEvent::ProgramStopped);
+        }
     }
 
     /// Stops a running group maneuver (the caller stops the car).
@@ -1084,6 +1190,10 @@ impl Program {
                 return Some(Refusal::UnsupportedVersion)
             }
             Err(console::DecodeError::UnknownTag { .. }) => return Some(Refusal::UnknownRequest),
+            Err(console::DecodeError::Params {
+                error: maneuvers::DecodeError::UnknownLaw { .. },
+                ..
+            }) => return Some(Refusal::UnknownLaw),
             Err(console::DecodeError::Params { .. }) => return Some(Refusal::BadArgument),
             Err(_) => return Some(Refusal::Malformed),
         };
@@ -1170,32 +1280,46 @@ impl Program {
                     return Some(Refusal::DriveDisabled);
                 }
                 self.stop_maneuvers(now, log);
-                if params == maneuvers::ManeuverParams::Idle {
+                if params.is_idle() {
                     let _ = self.send(now, Command::Stop, Owner::Stop);
                 } else {
                     self.group.start(params);
-                    if let maneuvers::ManeuverParams::CameraFollow {
-                        marker,
-                        distance_units,
-                        speed_mm_s,
-                    } = params
-                    {
-                        self.camera.start_follow(marker, distance_units, speed_mm_s);
+                    if let Some(maneuvers::AnyLaw::CameraFollow(c)) = self.group.law() {
+                        self.camera
+                            .start_follow(c.marker, c.distance_units, c.speed_mm_s);
                     }
-                    log.log(
-                        now,
-                        LogEvent::GroupStarted {
-                            kind: params.kind(),
-                        },
-                    );
+                    log.log(now, LogEvent::GroupStarted { kind: params.law() });
                 }
                 self.respond(id, Tag::GroupStart as u8, &Reply::GroupStarted);
             }
             Request::GroupWaypoint { x, y } => {
                 if !self.group.set_waypoint(x, y) {
-                    return Some(Refusal::NoFormation);
+                    return Some(Refusal::NoGroup);
                 }
                 self.respond(id, Tag::GroupWaypoint as u8, &Reply::GroupWaypointSet);
+            }
+            Request::ProgramStart(args) => {
+                if !self.user.present {
+                    return Some(Refusal::NoProgram);
+                }
+                if self.phase != Phase::Running {
+                    return Some(Refusal::NotReady);
+                }
+                if !self.drive_enabled {
+                    return Some(Refusal::DriveDisabled);
+                }
+                self.stop_maneuvers(now, log);
+                self.user.start = Some(args);
+                self.user.running = true;
+                self.user.progress = (0, 0);
+                self.user.gate.reset();
+                log.log(now, LogEvent::ProgramStarted);
+                self.respond(id, Tag::ProgramStart as u8, &Reply::ProgramStarted);
+            }
+            Request::ProgramStop => {
+                self.stop_maneuvers(now, log);
+                let _ = self.send(now, Command::Stop, Owner::Stop);
+                self.respond(id, Tag::ProgramStop as u8, &Reply::ProgramStopped);
             }
         }
         None

@@ -1,11 +1,27 @@
-//! Board layer of the program: feeds the two UARTs' interrupt-driven rings and the CLINT time
-//! to [`ubc_app::program::Program`], runs the vision pipeline on each new camera frame (in
-//! place in the frame grabber's window) and hands the program its detections, logs its events
-//! through defmt and sleeps in WFI until the program's next deadline, a received byte, or the
-//! next look at the frame grabber.
+//! Board layer of the program (feature `firmware`): brings the board up, feeds the two UARTs'
+//! interrupt-driven rings and the CLINT time to [`crate::program::Program`] (with a program
+//! loop, [`crate::program::user::UserProgram`], when the binary has one), runs the vision
+//! pipeline on each new camera frame (in place in the frame grabber's window) and hands the
+//! program its detections, logs its events through defmt and sleeps in WFI until the
+//! program's next deadline, a received byte, or the next look at the frame grabber.
+//!
+//! Every firmware binary is a few lines on top of this: `src/main.rs` (the stock program)
+//! and the programs in `src/bin/` (`cargo xtask new-program NAME`) call [`start`] from their
+//! entry point and [`panic`] from their panic handler.
 
-use crate::board::{Board, Camera, Clock, Uart};
-use ubc_app::program::{self, BytePort, Config, LogEvent, LogSink, Program};
+#[cfg(feature = "qemu_virt")]
+pub use ubc_hal::boards::qemu_virt as board;
+
+#[cfg(feature = "softcore")]
+pub use ubc_hal::boards::softcore as board;
+
+#[cfg(not(any(feature = "qemu_virt", feature = "softcore")))]
+compile_error!("select a board with a cargo feature, e.g. `--features qemu_virt`");
+
+use crate::program::user::UserProgram;
+use crate::program::{self, BytePort, Config, LogEvent, LogSink, Program};
+use board::{Board, Camera, Clock, Uart};
+use core::sync::atomic::{AtomicBool, Ordering};
 use ubc_hal::cpu;
 use vision::blobs::BlobDetector;
 use vision::colour::MARKER_CLASSES;
@@ -90,12 +106,84 @@ impl LogSink for Defmt {
                 defmt::info!("group maneuver started: kind {=u8}", kind)
             }
             LogEvent::GroupStopped => defmt::info!("group maneuver stopped"),
+            LogEvent::ProgramStarted => defmt::info!("program started"),
+            LogEvent::ProgramDone => defmt::info!("program done"),
+            LogEvent::ProgramStopped => defmt::info!("program stopped"),
         }
     }
 }
 
-/// Runs the program forever.
-pub fn run(board: Board) -> ! {
+/// Firmware version (the crate version).
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+/// Exit status reported when the firmware panics.
+pub const EXIT_PANIC: u16 = 1;
+/// Exit status reported when the board cannot be brought up.
+pub const EXIT_BOARD: u16 = 4;
+
+/// Takes the board and logs the banner (`ubc-app VERSION board=NAME timebase=HZ Hz`) and
+/// what is missing; ends the firmware with [`EXIT_BOARD`] when the board cannot be brought
+/// up.
+pub fn take_board() -> Board {
+    let board = match Board::take() {
+        Ok(board) => board,
+        Err(e) => {
+            defmt::error!("board bring-up failed: {}", e);
+            board::exit_device().fail(EXIT_BOARD)
+        }
+    };
+    defmt::info!(
+        "ubc-app {=str} board={=str} timebase={=u32} Hz",
+        VERSION,
+        board::NAME,
+        board.clock.hz()
+    );
+    #[cfg(feature = "qemu_virt")]
+    match (&board.radio, &board.radio_info) {
+        (Ok(_), Some(info)) => defmt::info!(
+            "radio uart: pci-serial at {=usize:#x} (slot {=u8}, pin {}, PLIC source {=u32})",
+            info.device.cpu_address,
+            info.device.bdf.device,
+            info.device.pin,
+            info.plic_source
+        ),
+        (Err(e), _) => defmt::warn!("radio uart unavailable: {}", e),
+        _ => {}
+    }
+    #[cfg(feature = "softcore")]
+    if let Err(e) = &board.radio {
+        defmt::warn!("radio uart unavailable: {}", e);
+    }
+    board
+}
+
+/// Brings the board up and runs the program, with `program` as its loop, forever.
+pub fn start<U: UserProgram>(mut program: U) -> ! {
+    run(take_board(), &mut program)
+}
+
+/// What a firmware's panic handler does: logs the message when it is plain text and the
+/// location (formatting a message with arguments would pull `core::fmt`, several KiB, into
+/// the image), then ends the firmware with [`EXIT_PANIC`].
+pub fn panic(info: &core::panic::PanicInfo) -> ! {
+    static PANICKING: AtomicBool = AtomicBool::new(false);
+    // A panic while reporting a panic (e.g. inside the logger) must not recurse.
+    if !PANICKING.swap(true, Ordering::AcqRel) {
+        let message = info.message().as_str().unwrap_or("(formatted message)");
+        match info.location() {
+            Some(l) => defmt::error!(
+                "panic: {=str} at {=str}:{=u32}",
+                message,
+                l.file(),
+                l.line()
+            ),
+            None => defmt::error!("panic: {=str}", message),
+        }
+    }
+    board::exit_device().fail(EXIT_PANIC)
+}
+
+/// Runs the program with its loop forever.
+fn run<U: UserProgram>(board: Board, user: &mut U) -> ! {
     let clock = board.clock;
     let mut lbc = board.lbc;
     let mut radio = board.radio.ok();
@@ -105,11 +193,12 @@ pub fn run(board: Board) -> ! {
     let mut next_stats = clock.micros() + STATS_PERIOD_US;
     loop {
         grab_frame(&mut camera, &mut detector, &mut program, &clock);
-        program.poll(
+        program.poll_with(
             &BoardClock(&clock),
             &mut Port(Some(&mut lbc)),
             &mut Port(radio.as_mut()),
             &mut Defmt,
+            user,
         );
         let now = clock.micros();
         if now >= next_stats {
