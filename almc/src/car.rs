@@ -69,6 +69,9 @@ pub enum CarCommand {
     /// Group maneuver: any registered law (`almc laws`).
     #[command(subcommand)]
     Group(GroupCommand),
+    /// The car's own program loop (a firmware built from `cargo xtask new-program`).
+    #[command(subcommand)]
+    Program(ProgramCommand),
     /// The car's latest camera detections: frame, blob count, the followed marker's bearing and
     /// range, and one blob (0 = the largest).
     Camera {
@@ -94,6 +97,20 @@ pub enum ManeuverCommand {
         points: Vec<String>,
     },
     /// Abort the maneuver and stop the car.
+    Stop,
+}
+
+/// `almc car program ...`
+#[derive(Debug, Subcommand)]
+pub enum ProgramCommand {
+    /// Start the program loop with up to 14 arguments (-32768..=32767; their meaning is the
+    /// program's).
+    Start {
+        /// The arguments.
+        #[arg(allow_negative_numbers = true)]
+        args: Vec<i16>,
+    },
+    /// Stop the program loop and the car.
     Stop,
 }
 
@@ -218,6 +235,16 @@ fn build_requests(cmd: &CarCommand) -> Result<Vec<Request>, CarError> {
             vec![Request::GroupWaypoint { x: p.x, y: p.y }]
         }
         CarCommand::Group(GroupCommand::Stop) => vec![Request::ManeuverStop],
+        CarCommand::Program(ProgramCommand::Start { args }) => {
+            if args.len() > ubc_app::program::user::MAX_ARGS {
+                return Err(CarError::BadArgument(format!(
+                    "at most {} program arguments",
+                    ubc_app::program::user::MAX_ARGS
+                )));
+            }
+            vec![Request::ProgramStart(args.iter().copied().collect())]
+        }
+        CarCommand::Program(ProgramCommand::Stop) => vec![Request::ProgramStop],
         CarCommand::Camera { blob } => vec![Request::Camera { blob: *blob }],
         CarCommand::Stats { page: Some(p) } => vec![Request::Stats(*p)],
         CarCommand::Stats { page: None } => (0..4).map(Request::Stats).collect(),
@@ -317,6 +344,8 @@ pub fn reply_json(r: &Reply) -> (bool, Value) {
         Reply::ManeuverStopped => (true, json!({ "maneuver": "stopped" })),
         Reply::GroupStarted => (true, json!({ "group": "started" })),
         Reply::GroupWaypointSet => (true, json!({ "group": "waypoint-set" })),
+        Reply::ProgramStarted => (true, json!({ "program": "started" })),
+        Reply::ProgramStopped => (true, json!({ "program": "stopped" })),
         Reply::Stats { page, values } => {
             let known = StatsPage::from_number(*page);
             let names = known.map(StatsPage::counters);

@@ -67,6 +67,8 @@ pub enum ArgError<'a> {
     },
     /// The key is given twice.
     Duplicate(&'a str),
+    /// Not one of [`OPTION_KEYS`].
+    NotAnOption(&'a str),
     /// A parameter without a default is not given.
     Missing {
         /// The law.
@@ -149,6 +151,10 @@ impl fmt::Display for ArgError<'_> {
                 Keys(law)
             ),
             ArgError::Duplicate(k) => write!(f, "`{k}` is given twice"),
+            ArgError::NotAnOption(k) => write!(
+                f,
+                "`{k}` is not an option (the options are reverse, arrival_units, neighbours)"
+            ),
             ArgError::Missing { law, param } => write!(
                 f,
                 "law `{}` needs `{}` ({}): {}",
@@ -188,7 +194,8 @@ fn param_value<'a>(key: &'a str, p: &Param, value: Arg<'a>) -> Result<i32, ArgEr
     }
 }
 
-fn option<'a>(key: &'a str, value: Arg<'a>, o: &mut Overrides) -> Result<(), ArgError<'a>> {
+/// Sets option `key` (one of [`OPTION_KEYS`]) of `o` to `value`.
+pub fn set_option<'a>(key: &'a str, value: Arg<'a>, o: &mut Overrides) -> Result<(), ArgError<'a>> {
     let bad = |expected| ArgError::BadValue {
         key,
         value,
@@ -210,7 +217,7 @@ fn option<'a>(key: &'a str, value: Arg<'a>, o: &mut Overrides) -> Result<(), Arg
             Arg::Int(v @ 1..=255) => o.arrival_units = Some(v as u8),
             _ => return Err(bad(Expected::Range(1, 255))),
         },
-        _ => {
+        "neighbours" => {
             o.neighbours = Some(match value {
                 Arg::Word("all") => Neighbours::All,
                 Arg::Word("none") => Neighbours::None,
@@ -220,6 +227,7 @@ fn option<'a>(key: &'a str, value: Arg<'a>, o: &mut Overrides) -> Result<(), Arg
                 _ => return Err(bad(Expected::Neighbours)),
             })
         }
+        _ => return Err(ArgError::NotAnOption(key)),
     }
     Ok(())
 }
@@ -265,7 +273,7 @@ impl LawInfo {
                     return Err(ArgError::Duplicate(key));
                 }
                 options_seen[k] = true;
-                option(key, value, &mut overrides)?;
+                set_option(key, value, &mut overrides)?;
             } else {
                 return Err(ArgError::Unknown { law: self, key });
             }

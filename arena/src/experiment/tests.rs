@@ -227,10 +227,16 @@ fn bad_experiments_are_rejected_with_reasons() {
         bad("x = 150", "x = 70000"),
         ExperimentError::Parse(_)
     ));
-    assert!(matches!(
-        bad("kind = \"goto\"", "kind = \"orbit\""),
-        ExperimentError::Parse(_)
-    ));
+    match bad("kind = \"goto\"", "kind = \"orbit\"") {
+        ExperimentError::Invalid(i @ Invalid::UnknownKind { phase: 1, .. }) => {
+            let text = i.to_string();
+            assert!(
+                text.contains("unknown kind `orbit`; the kinds are program and the registered laws: formation, rendezvous, circle, goto"),
+                "{text}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
     assert!(matches!(
         bad(
             "[faults]",
@@ -546,3 +552,5 @@ fn engine_threads_failure_policy_and_profiles_from_the_file() {
         Err(ExperimentError::Parse(_))
     ));
 }
+
+mod laws;
