@@ -1,7 +1,8 @@
 //! `cargo xtask new-program NAME`: a new upper-board program from the template.
 //!
 //! Copies `ubc-app/src/bin/template.rs` to `ubc-app/src/bin/NAME.rs` with the names changed
-//! (`template` to `NAME`, the type `Template` to its CamelCase form) and adds the binary to
+//! (`` `template` `` and `--bin template` to the new name, the type `Template` to its
+//! CamelCase form) and adds the binary to
 //! `ubc-app/Cargo.toml` (it needs a board, like every firmware binary). `cargo xtask fw --bin
 //! NAME` then builds it, and an experiment runs it on a car with `firmware = "NAME"`.
 
@@ -42,7 +43,8 @@ fn camel(name: &str) -> String {
 pub fn render(template: &str, name: &str) -> String {
     template
         .replace("Template", &camel(name))
-        .replace(TEMPLATE, name)
+        .replace(&format!("`{TEMPLATE}`"), &format!("`{name}`"))
+        .replace(&format!("--bin {TEMPLATE}"), &format!("--bin {name}"))
 }
 
 /// The `[[bin]]` entry of program `name`.
@@ -114,8 +116,10 @@ mod tests {
         create(&dir, "square_drive").unwrap();
         let made = fs::read_to_string(dir.join("src/bin/square_drive.rs")).unwrap();
         assert!(made.contains("struct SquareDrive {"), "{made}");
-        assert!(made.contains("--bin square_drive"));
-        assert!(!made.contains("Template") && !made.contains("template"));
+        assert!(made.starts_with("//! `square_drive`: "), "{made}");
+        assert!(made.contains("--bin square_drive "));
+        assert!(made.contains("from\n//! `ubc-app/src/bin/template.rs`"));
+        assert!(!made.contains("Template") && !made.contains("`template`"));
         let toml = fs::read_to_string(dir.join("Cargo.toml")).unwrap();
         assert!(toml.ends_with(&bin_entry("square_drive")));
         // Not twice, and not over the template.

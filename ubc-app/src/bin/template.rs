@@ -1,13 +1,13 @@
-//! `template`: an upper-board program, made from the template by `cargo xtask new-program
-//! NAME` (which copies this file to `src/bin/NAME.rs`; `docs/writing-a-program.md` walks
-//! through one). The stock program does everything else: it brings the LBC up, keeps the
-//! car's pose from the 30 Hz stream, serves the console over the radio (status, LBC
-//! commands, maneuvers) and stops the car when a link is lost. What is here is the loop it
-//! runs at every stream sample once the ground station starts it:
+//! `template`: an upper-board program, made by `cargo xtask new-program` from
+//! `ubc-app/src/bin/template.rs` (`docs/writing-a-program.md` walks through one). The stock
+//! program does everything else: it brings the LBC up, keeps the car's pose from the 30 Hz
+//! stream, serves the console over the radio (status, LBC commands, maneuvers) and stops the
+//! car when a link is lost. What is here is the loop it runs at every stream sample once the
+//! ground station starts it:
 //!
 //! ```sh
-//! cargo xtask fw --board qemu_virt --bin template            # build (prints the ELF path)
-//! almc car --radio unix:PATH program start 300 500           # start with two arguments
+//! cargo xtask fw --board qemu_virt --bin template     # build (prints the ELF path)
+//! almc car --radio unix:PATH program start 300 500    # start it with two arguments
 //! ```
 //!
 //! As it comes, the loop drives to the point given by its two arguments (tracking units) with
