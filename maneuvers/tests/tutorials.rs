@@ -56,10 +56,11 @@ fn check(doc: &Path) -> usize {
 
 #[test]
 fn tutorial_code_is_the_compiled_code() {
-    for (doc, at_least) in [("docs/writing-a-program.md", 5)] {
+    let tutorial = |doc: &str, at_least: usize| {
         let n = check(&root().join(doc));
         assert!(n >= at_least, "{doc}: only {n} checked blocks");
-    }
+    };
+    tutorial("docs/writing-a-program.md", 5);
     // Any other page that names a file is held to it too.
     for entry in std::fs::read_dir(root().join("docs")).unwrap() {
         let path = entry.unwrap().path();
