@@ -164,7 +164,7 @@ pub struct LawInput<'a> {
     pub area: GoalArea,
 }
 
-impl LawInput<'_> {
+impl<'a> LawInput<'a> {
     /// This car as `f32` (tracking units, rad, mm/s), for laws written in floating point.
     pub fn me(&self) -> Me {
         Me {
@@ -176,7 +176,7 @@ impl LawInput<'_> {
     }
 
     /// The neighbour with ID `id`, if it is fresh and selected.
-    pub fn neighbour(&self, id: u8) -> Option<&Neighbour> {
+    pub fn neighbour(&self, id: u8) -> Option<&'a Neighbour> {
         self.neighbours.iter().find(|n| n.id == id)
     }
 }
