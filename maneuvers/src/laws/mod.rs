@@ -12,4 +12,5 @@ crate::registry::register_laws! {
     3 => circle::Circle,
     4 => goto::GoTo,
     5 => camera_follow::CameraFollow,
+    16 => platoon::Platoon,
 }
