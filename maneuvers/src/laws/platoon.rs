@@ -1,7 +1,8 @@
 //! Platoon: the cars drive in single file behind a leader. Each follower keeps a gap behind
 //! the car ahead of it — the car with the next lower ID it hears, or the leader — along that
-//! car's heading, matching its velocity; the leader drives through the waypoints. The example
-//! law of `docs/writing-a-law.md`, written without floating point.
+//! car's heading, matching its velocity, and waits rather than drive backwards; the leader
+//! drives through the waypoints. The example law of `docs/writing-a-law.md`, written without
+//! floating point.
 
 use crate::imath;
 use crate::law::{Guidance, Law, LawInput, LawOptions, Plan, Reverse};
@@ -96,14 +97,21 @@ impl Law for Platoon {
         }
         // Its velocity, plus a correction towards the place.
         let (vx, vy) = along(v);
+        let (vx, vy) = (vx + GAIN_MM_S_PER_UNIT * ex, vy + GAIN_MM_S_PER_UNIT * ey);
+        let converged = e < TOLERANCE_UNITS;
+        // A car past its place waits for the car ahead to draw away rather than turn round
+        // into the car behind it: it never drives against the platoon's direction. Up to
+        // half a gap too close and a quarter of one aside (it cannot move sideways) it counts
+        // as in place.
+        if vx * cos + vy * sin <= 0 {
+            let past = -((ex * cos + ey * sin) >> 14);
+            let aside = ((ey * cos - ex * sin) >> 14).abs();
+            let close = past >= 0 && past < self.gap_units / 2 && aside < self.gap_units / 4;
+            return Plan::hold(Phase::Hold, converged || close, error_units);
+        }
         // The speed is at most 1000 mm/s: this fits.
         let max = (2 * self.speed_mm_s).max(300);
-        let (vx, vy) = imath::clamp_norm(
-            vx + GAIN_MM_S_PER_UNIT * ex,
-            vy + GAIN_MM_S_PER_UNIT * ey,
-            max,
-        );
-        let converged = e < TOLERANCE_UNITS;
+        let (vx, vy) = imath::clamp_norm(vx, vy, max);
         Plan {
             // At most 2000 mm/s: the casts are exact.
             guidance: Guidance::Velocity {
@@ -284,6 +292,28 @@ mod tests {
         assert!(p.leads(1) && !p.leads(2));
     }
 
+    #[test]
+    fn a_car_past_its_place_waits() {
+        let mut p = platoon();
+        // The car ahead stands at (300, 500) heading +Y; this car's place is (300, 400).
+        let others = [car(1, 300, 500, 1571, 0)];
+        let past = CarPose {
+            x: 300,
+            y: 430,
+            heading_mrad: 1571,
+            velocity_mm_s: 0,
+        };
+        let plan = step(&mut p, 2, past, &others, None);
+        assert_eq!(plan.guidance, Guidance::Hold);
+        assert!(plan.converged, "30 units too close counts as in place: {plan:?}");
+        // Moving slower than the car ahead would take it backwards: it waits, not in place.
+        let others = [car(1, 300, 500, 1571, 40)];
+        let far_past = CarPose { y: 460, ..past };
+        let plan = step(&mut p, 2, far_past, &others, None);
+        assert_eq!(plan.guidance, Guidance::Hold);
+        assert!(!plan.converged);
+    }
+
     /// Four cars in the simulation: they close up behind the leader, follow it to its
     /// waypoint and end in single file with the gaps kept.
     #[test]
@@ -294,12 +324,17 @@ mod tests {
         for (id, x) in [(1, 400.0), (2, 250.0), (3, 160.0), (4, 60.0)] {
             w.add(id, x, 150.0, 0.0, params);
         }
-        w.car_mut(1).ctrl.set_waypoint(480, 400);
+        w.car_mut(1).ctrl.set_waypoint(480, 650);
         let t = w.run_until(60.0, |w| {
-            let arrived = (w.car(1).pos - crate::geom::Vec2::new(480.0, 400.0)).norm() < 12.0;
+            let arrived = (w.car(1).pos - crate::geom::Vec2::new(480.0, 650.0)).norm() < 12.0;
             arrived && w.all_converged() && w.cars.iter().all(|c| c.speed.abs() < 1.0)
         });
-        let t = t.expect("the platoon settles");
+        let t = t.unwrap_or_else(|| {
+            for c in &w.cars {
+                eprintln!("car {} at {:?} heading {:.2}: {:?}", c.id, c.pos, c.heading, c.last);
+            }
+            panic!("the platoon did not settle");
+        });
         eprintln!("platoon settled at {t:.1} s, min body distance {:.1}", w.min_distance);
         assert!(w.min_distance > 60.0 && w.wall_excursion <= 0.0);
         for id in 2..=4u8 {
