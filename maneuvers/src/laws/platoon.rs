@@ -46,8 +46,8 @@ impl Law for Platoon {
             .default(150)
             .doc("the leader's cruise speed towards its waypoint"),
     ];
-    // A follower that ends up ahead of its place turns round forward instead of reversing
-    // into the car behind it.
+    // A car whose way lies behind it (the leader's next waypoint, a follower's place after a
+    // turn) turns round forward instead of reversing into the cars behind it.
     const OPTIONS: LawOptions = LawOptions {
         reverse: Reverse::Never,
         ..LawOptions::DEFAULT
