@@ -15,11 +15,12 @@ use super::config::Config;
 use super::console::{
     self, flags, LbcOutcome, Notice, Refusal, Reply, Request, Status, Tag, MAX_PAYLOAD,
 };
-use super::group::{lbc_command, neighbours, Group, SendGate};
+use super::group::{lbc_command, Group};
 use super::leds::LedState;
 use super::maneuver::Maneuver;
-use super::user::{self, NoProgram, ProgramInput, UserProgram};
+use super::user::{NoProgram, UserProgram};
 use super::{BytePort, Clock, LogSink};
+use user_loop::UserState;
 
 /// Stream variables the program always asks for: position (1), steering and velocity (2),
 /// heading (4), chip status (15), target position (16), target steering and velocity (17).
@@ -33,6 +34,8 @@ const MAX_OWNED: usize = lbc_link::client::QUEUE_LEN + 1;
 const RADIO_TX: usize = 64;
 /// Milliseconds between retries of a write that did not fit in a UART.
 const TX_RETRY_US: u64 = 1_000;
+
+mod user_loop;
 
 /// Bring-up state (the `phase` of [`Status`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -229,22 +232,6 @@ pub struct Program {
     radio_tx: [u8; RADIO_TX],
     radio_tx_len: usize,
     radio_tx_pos: usize,
-}
-
-/// The program loop's state (the loop itself is passed to [`Program::poll_with`]).
-#[derive(Debug, Default)]
-struct UserState {
-    /// The firmware has a program loop (set at every poll).
-    present: bool,
-    running: bool,
-    /// Arguments of a start not yet handed to the loop.
-    start: Option<user::Args>,
-    /// A stop not yet told to the loop.
-    stop: bool,
-    /// A STREAM sample arrived since the loop last ran.
-    sample: bool,
-    progress: (u8, u8),
-    gate: SendGate<maneuvers::Command>,
 }
 
 fn ms(v: u32) -> u64 {
@@ -519,57 +506,6 @@ impl Program {
         // Commands queued by the handlers above go out in this same poll.
         self.feed_lbc(now, &[], log);
         self.flush(lbc, radio);
-    }
-
-    /// The program loop: hands it a pending start or stop, and runs it at a new sample
-    /// while the car can drive.
-    fn run_user<U, S>(&mut self, now: u64, program: &mut U, log: &mut S)
-    where
-        U: UserProgram + ?Sized,
-        S: LogSink + ?Sized,
-    {
-        if core::mem::take(&mut self.user.stop) {
-            program.stop();
-        }
-        if let Some(args) = self.user.start.take() {
-            program.start(now, &args);
-        }
-        let sample = core::mem::take(&mut self.user.sample);
-        if !(self.user.running && sample && self.phase == Phase::Running && self.drive_enabled) {
-            return;
-        }
-        let v = &self.vehicle;
-        let own = maneuvers::CarPose {
-            x: v.x,
-            y: v.y,
-            heading_mrad: v.heading,
-            velocity_mm_s: v.velocity,
-        };
-        let id = self.mac.as_ref().map_or(0, |m| m.id().get());
-        let others = neighbours(now, self.mac.as_ref().map(CarMac::neighbours));
-        let step = program.step(&ProgramInput {
-            now_us: now,
-            id,
-            own,
-            neighbours: &others,
-        });
-        self.user.progress = program.progress();
-        match step {
-            user::Step::Drive(m) => {
-                let may_send = !self.owned.iter().any(|(_, o)| matches!(o, Owner::Group));
-                if let Some(m) = self.user.gate.offer(now, m, may_send) {
-                    if !self.send(now, lbc_command(m), Owner::Group) {
-                        self.user.gate.reset();
-                    }
-                }
-            }
-            user::Step::Done => {
-                self.user.running = false;
-                let _ = self.send(now, Command::Stop, Owner::Stop);
-                log.log(now, LogEvent::ProgramDone);
-                self.notice(now, Notice::ManeuverDone);
-            }
-        }
     }
 
     /// The time (same clock) at which [`Program::poll`] next has work without new bytes.
@@ -1298,24 +1234,7 @@ impl Program {
                 }
                 self.respond(id, Tag::GroupWaypoint as u8, &Reply::GroupWaypointSet);
             }
-            Request::ProgramStart(args) => {
-                if !self.user.present {
-                    return Some(Refusal::NoProgram);
-                }
-                if self.phase != Phase::Running {
-                    return Some(Refusal::NotReady);
-                }
-                if !self.drive_enabled {
-                    return Some(Refusal::DriveDisabled);
-                }
-                self.stop_maneuvers(now, log);
-                self.user.start = Some(args);
-                self.user.running = true;
-                self.user.progress = (0, 0);
-                self.user.gate.reset();
-                log.log(now, LogEvent::ProgramStarted);
-                self.respond(id, Tag::ProgramStart as u8, &Reply::ProgramStarted);
-            }
+            Request::ProgramStart(args) => return self.program_start(now, id, args, log),
             Request::ProgramStop => {
                 self.stop_maneuvers(now, log);
                 let _ = self.send(now, Command::Stop, Owner::Stop);
