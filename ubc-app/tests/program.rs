@@ -527,6 +527,34 @@ fn group_maneuver_stops_when_the_user_link_or_the_lbc_is_lost() {
 }
 
 #[test]
+fn group_start_of_an_unknown_law_or_an_old_layout_is_refused() {
+    let mut s = Sim::new();
+    s.bring_up();
+    // Version 2, law 200 (not in the registration list), no options, no parameters.
+    assert_eq!(
+        s.request_raw(Tag::GroupStart as u8, &[2, 200, 0, 0, 0]),
+        Reply::Refused(Refusal::UnknownLaw)
+    );
+    // The version-1 layout (3-bit selector, 6 packed bytes): go-to (300, 600) at 200 mm/s.
+    assert_eq!(
+        s.request_raw(
+            Tag::GroupStart as u8,
+            &[1, 0x64, 0x09, 0x4B, 0x64, 0x00, 0x00]
+        ),
+        Reply::Refused(Refusal::UnsupportedVersion)
+    );
+    // A known law with a parameter out of range (go-to x = 1024).
+    assert_eq!(
+        s.request_raw(
+            Tag::GroupStart as u8,
+            &[2, 4, 0, 0, 0, 0x00, 0x04, 0, 0, 0, 0]
+        ),
+        Reply::Refused(Refusal::BadArgument)
+    );
+    assert!(!s.prog.group().active());
+}
+
+#[test]
 fn group_start_broadcast_reaches_the_car() {
     let mut s = Sim::new();
     s.bring_up();
