@@ -9,8 +9,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use clap::{Args, Subcommand, ValueEnum};
-use maneuvers::{ManeuverParams, Shape};
+use clap::{Args, Subcommand};
 use radio_mac::{CarId, Event};
 use serde_json::{json, Value};
 use ubc_app::program::console::{
@@ -67,9 +66,12 @@ pub enum CarCommand {
     /// Go-to-points maneuver.
     #[command(subcommand)]
     Maneuver(ManeuverCommand),
-    /// Group maneuver (formation, rendezvous, circle, go-to, camera follow).
+    /// Group maneuver: any registered law (`almc laws`).
     #[command(subcommand)]
     Group(GroupCommand),
+    /// The car's own program loop (a firmware built from `cargo xtask new-program`).
+    #[command(subcommand)]
+    Program(ProgramCommand),
     /// The car's latest camera detections: frame, blob count, the followed marker's bearing and
     /// range, and one blob (0 = the largest).
     Camera {
@@ -98,156 +100,40 @@ pub enum ManeuverCommand {
     Stop,
 }
 
+/// `almc car program ...`
+#[derive(Debug, Subcommand)]
+pub enum ProgramCommand {
+    /// Start the program loop with up to 14 arguments (-32768..=32767; their meaning is the
+    /// program's).
+    Start {
+        /// The arguments.
+        #[arg(allow_negative_numbers = true)]
+        args: Vec<i16>,
+    },
+    /// Stop the program loop and the car.
+    Stop,
+}
+
 /// `almc car group ...`
 #[derive(Debug, Subcommand)]
 pub enum GroupCommand {
-    /// Start a group maneuver on this car (replaces any running maneuver).
-    #[command(subcommand)]
-    Start(GroupLaw),
-    /// Next waypoint `X,Y` (tracking units) of the formation leader.
+    /// Start a group maneuver on this car (replaces any running maneuver): a registered law
+    /// and its parameters as `key=value`, plus the options `reverse=allowed|turn|never`,
+    /// `arrival_units=U`, `neighbours=all|none|K` (`almc laws` lists every law).
+    Start {
+        /// The law's name, e.g. `goto`.
+        law: String,
+        /// Its parameters, e.g. `x=300 y=600 speed_mm_s=200`.
+        #[arg(value_name = "KEY=VALUE", allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
+    /// Next waypoint `X,Y` (tracking units) of the running law.
     Waypoint {
         /// `X,Y` with X 0..=640, Y 0..=960.
         point: String,
     },
     /// Stop the maneuver and the car.
     Stop,
-}
-
-/// Formation geometry on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ShapeArg {
-    /// Single file behind the leader.
-    Line,
-    /// V opening backwards.
-    Wedge,
-}
-
-/// A group maneuver law and its parameters (ranges in `docs/maneuvers.md`).
-#[derive(Debug, Subcommand)]
-pub enum GroupLaw {
-    /// Leader-follower formation.
-    Formation {
-        /// Line or wedge.
-        #[arg(long, value_enum, default_value_t = ShapeArg::Line)]
-        shape: ShapeArg,
-        /// Leader's car ID, 1..=126.
-        #[arg(long)]
-        leader: u8,
-        /// Slot 0..=14 (default: rank of this car's ID among the followers).
-        #[arg(long)]
-        slot: Option<u8>,
-        /// Distance between slots, tracking units, 1..=511.
-        #[arg(long, default_value_t = 60)]
-        spacing: u16,
-        /// Leader's cruise speed, mm/s, 0..=2047.
-        #[arg(long, default_value_t = 150)]
-        speed: u16,
-    },
-    /// Rendezvous by consensus.
-    Rendezvous {
-        /// Arrival radius, tracking units, 1..=511.
-        #[arg(long, default_value_t = 40)]
-        radius: u16,
-        /// Maximum speed, mm/s, 0..=2047.
-        #[arg(long, default_value_t = 200)]
-        speed: u16,
-    },
-    /// Even spacing on a rotating circle.
-    Circle {
-        /// Centre X, tracking units, 0..=1023.
-        #[arg(long)]
-        cx: u16,
-        /// Centre Y, tracking units, 0..=1023.
-        #[arg(long)]
-        cy: u16,
-        /// Radius, tracking units, 1..=511.
-        #[arg(long)]
-        radius: u16,
-        /// Speed along the circle, mm/s, -2048..=2047 (positive counter-clockwise).
-        #[arg(long, default_value_t = 100, allow_negative_numbers = true)]
-        speed: i16,
-    },
-    /// Drive to a point and stop.
-    Goto {
-        /// Target X, tracking units, 0..=1023.
-        x: u16,
-        /// Target Y, tracking units, 0..=1023.
-        y: u16,
-        /// Maximum speed, mm/s, 0..=2047.
-        #[arg(long, default_value_t = 200)]
-        speed: u16,
-    },
-    /// Follow the car carrying a camera marker.
-    CameraFollow {
-        /// Vision colour class of the leader's marker, 0..=255.
-        #[arg(long)]
-        marker: u8,
-        /// Distance behind the leader, tracking units, 1..=511.
-        #[arg(long, default_value_t = 80)]
-        distance: u16,
-        /// Maximum speed, mm/s, 0..=2047.
-        #[arg(long, default_value_t = 150)]
-        speed: u16,
-    },
-}
-
-impl GroupLaw {
-    /// The parameters, checked against their wire ranges.
-    pub fn params(&self) -> Result<ManeuverParams, CarError> {
-        let p = match *self {
-            GroupLaw::Formation {
-                shape,
-                leader,
-                slot,
-                spacing,
-                speed,
-            } => ManeuverParams::Formation {
-                shape: match shape {
-                    ShapeArg::Line => Shape::Line,
-                    ShapeArg::Wedge => Shape::Wedge,
-                },
-                leader,
-                slot,
-                spacing_units: spacing,
-                speed_mm_s: speed,
-            },
-            GroupLaw::Rendezvous { radius, speed } => ManeuverParams::Rendezvous {
-                radius_units: radius,
-                speed_mm_s: speed,
-            },
-            GroupLaw::Circle {
-                cx,
-                cy,
-                radius,
-                speed,
-            } => ManeuverParams::Circle {
-                cx,
-                cy,
-                radius_units: radius,
-                speed_mm_s: speed,
-            },
-            GroupLaw::Goto { x, y, speed } => ManeuverParams::GoTo {
-                x,
-                y,
-                speed_mm_s: speed,
-            },
-            GroupLaw::CameraFollow {
-                marker,
-                distance,
-                speed,
-            } => ManeuverParams::CameraFollow {
-                marker,
-                distance_units: distance,
-                speed_mm_s: speed,
-            },
-        };
-        match p.encode() {
-            Ok(_) => Ok(p),
-            Err(maneuvers::EncodeError::FieldOutOfRange { field }) => Err(CarError::BadArgument(
-                format!("{field:?} is out of range (see docs/maneuvers.md)"),
-            )),
-        }
-    }
 }
 
 /// Why a console exchange failed.
@@ -341,12 +227,24 @@ fn build_requests(cmd: &CarCommand) -> Result<Vec<Request>, CarError> {
             vec![Request::ManeuverStart(p)]
         }
         CarCommand::Maneuver(ManeuverCommand::Stop) => vec![Request::ManeuverStop],
-        CarCommand::Group(GroupCommand::Start(law)) => vec![Request::GroupStart(law.params()?)],
+        CarCommand::Group(GroupCommand::Start { law, args }) => vec![Request::GroupStart(
+            crate::laws::group_params(law, args).map_err(CarError::BadArgument)?,
+        )],
         CarCommand::Group(GroupCommand::Waypoint { point }) => {
             let p = parse_point(point)?;
             vec![Request::GroupWaypoint { x: p.x, y: p.y }]
         }
         CarCommand::Group(GroupCommand::Stop) => vec![Request::ManeuverStop],
+        CarCommand::Program(ProgramCommand::Start { args }) => {
+            if args.len() > ubc_app::program::user::MAX_ARGS {
+                return Err(CarError::BadArgument(format!(
+                    "at most {} program arguments",
+                    ubc_app::program::user::MAX_ARGS
+                )));
+            }
+            vec![Request::ProgramStart(args.iter().copied().collect())]
+        }
+        CarCommand::Program(ProgramCommand::Stop) => vec![Request::ProgramStop],
         CarCommand::Camera { blob } => vec![Request::Camera { blob: *blob }],
         CarCommand::Stats { page: Some(p) } => vec![Request::Stats(*p)],
         CarCommand::Stats { page: None } => (0..4).map(Request::Stats).collect(),
@@ -391,19 +289,6 @@ fn phase_name(p: u8) -> &'static str {
     }
 }
 
-/// Name of a law selector ([`ManeuverParams::kind`]).
-fn group_kind_name(kind: u8) -> &'static str {
-    match kind {
-        0 => "none",
-        1 => "formation",
-        2 => "rendezvous",
-        3 => "circle",
-        4 => "goto",
-        5 => "camera-follow",
-        _ => "unknown",
-    }
-}
-
 fn status_json(s: &Status) -> Value {
     let f = |bit| s.flags & bit != 0;
     json!({
@@ -430,7 +315,7 @@ fn status_json(s: &Status) -> Value {
         "lbc_failures": s.lbc_failures,
         "uptime_s": s.uptime_s,
         "group": {
-            "kind": group_kind_name(s.group_kind),
+            "kind": maneuvers::registry::name_of(s.group_kind).to_string(),
             "phase": maneuvers::Phase::from_bits(s.group_phase).map_or("unknown", maneuvers::Phase::name),
             "converged": s.group_converged,
             "error_units": s.group_error_units,
@@ -459,6 +344,8 @@ pub fn reply_json(r: &Reply) -> (bool, Value) {
         Reply::ManeuverStopped => (true, json!({ "maneuver": "stopped" })),
         Reply::GroupStarted => (true, json!({ "group": "started" })),
         Reply::GroupWaypointSet => (true, json!({ "group": "waypoint-set" })),
+        Reply::ProgramStarted => (true, json!({ "program": "started" })),
+        Reply::ProgramStopped => (true, json!({ "program": "stopped" })),
         Reply::Stats { page, values } => {
             let known = StatsPage::from_number(*page);
             let names = known.map(StatsPage::counters);
@@ -681,32 +568,31 @@ mod tests {
 
     #[test]
     fn group_arguments_are_checked() {
-        let law = GroupLaw::Goto {
-            x: 300,
-            y: 600,
-            speed: 200,
+        let start = |law: &str, args: &[&str]| {
+            build_requests(&CarCommand::Group(GroupCommand::Start {
+                law: law.into(),
+                args: args.iter().map(|a| a.to_string()).collect(),
+            }))
         };
         assert_eq!(
-            build_requests(&CarCommand::Group(GroupCommand::Start(law))).unwrap(),
-            vec![Request::GroupStart(ManeuverParams::GoTo {
-                x: 300,
-                y: 600,
-                speed_mm_s: 200
-            })]
+            start("goto", &["x=300", "y=600", "speed_mm_s=200"]).unwrap(),
+            vec![Request::GroupStart(
+                maneuvers::GoTo::params(300, 600, 200).unwrap()
+            )]
         );
-        let bad = GroupLaw::Rendezvous {
-            radius: 0,
-            speed: 100,
-        };
-        assert!(build_requests(&CarCommand::Group(GroupCommand::Start(bad))).is_err());
-        let bad = GroupLaw::Formation {
-            shape: ShapeArg::Wedge,
-            leader: 127,
-            slot: None,
-            spacing: 60,
-            speed: 100,
-        };
-        assert!(build_requests(&CarCommand::Group(GroupCommand::Start(bad))).is_err());
+        assert!(start("rendezvous", &["radius_units=0"]).is_err());
+        assert!(start("formation", &["leader=127"]).is_err());
+        match start("formation", &["leader=1", "spacing=60"]) {
+            Err(CarError::BadArgument(e)) => assert!(
+                e.contains("its parameters are shape (default line), leader, slot"),
+                "{e}"
+            ),
+            other => panic!("{other:?}"),
+        }
+        assert!(matches!(
+            start("platoonx", &[]),
+            Err(CarError::BadArgument(_))
+        ));
         assert_eq!(
             build_requests(&CarCommand::Group(GroupCommand::Waypoint {
                 point: "320,480".into()
@@ -727,6 +613,11 @@ mod tests {
         assert!(ok);
         assert_eq!(v["group"]["kind"], "rendezvous");
         assert_eq!(v["group"]["phase"], "hold");
+        let (_, v) = reply_json(&Reply::Status(Status {
+            group_kind: 250,
+            ..Status::default()
+        }));
+        assert_eq!(v["group"]["kind"], "law 250");
     }
 
     #[test]

@@ -10,6 +10,7 @@ mod camera;
 mod car;
 mod experiment;
 mod ground;
+mod laws;
 mod lbc;
 mod lbc_emu;
 mod radio;
@@ -36,6 +37,8 @@ enum Group {
     Radio(radio::RadioCommand),
     /// Console of one car's UBC program over the radio: LBC commands, status, maneuvers.
     Car(car::CarArgs),
+    /// The registered group-maneuver laws: parameters, options, IDs.
+    Laws(laws::LawsArgs),
     /// Camera frames of the cars: snapshots with the on-board detections drawn.
     #[command(subcommand)]
     Camera(camera::CameraCommand),
@@ -54,6 +57,7 @@ fn main() -> ExitCode {
         Group::Cars(args) => radio::run_cars(args),
         Group::Radio(cmd) => radio::run(cmd),
         Group::Car(args) => car::run(&args),
+        Group::Laws(args) => laws::run(&args),
         Group::Experiment(cmd) => experiment::run(cmd),
         Group::Sweep(cmd) => sweep::run(cmd),
         Group::Camera(cmd) => camera::run(cmd),

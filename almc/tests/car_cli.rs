@@ -204,7 +204,13 @@ fn car_console_over_a_socket() {
     // Group maneuvers.
     let out = car.almc(
         &[
-            "--json", "group", "start", "goto", "310", "430", "--speed", "150",
+            "--json",
+            "group",
+            "start",
+            "goto",
+            "x=310",
+            "y=430",
+            "speed_mm_s=150",
         ],
         &state,
     );
@@ -214,13 +220,20 @@ fn car_console_over_a_socket() {
     assert!(out.status.success(), "{out:?}");
     assert_eq!(json_of(&out)["reply"]["group"]["kind"], "goto");
     assert_eq!(json_of(&out)["reply"]["maneuver"], true);
+    // A waypoint goes to the running law (the go-to drives there instead).
     let out = car.almc(&["--json", "group", "waypoint", "300,300"], &state);
-    assert_eq!(out.status.code(), Some(1), "{out:?}");
-    assert_eq!(json_of(&out)["reply"]["refused"], "NoFormation");
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(json_of(&out)["reply"]["group"], "waypoint-set");
     let out = car.almc(
         &[
-            "group", "start", "circle", "--cx", "300", "--cy", "400", "--radius", "100", "--speed",
-            "-120",
+            "group",
+            "start",
+            "circle",
+            "cx=300",
+            "cy=400",
+            "radius_units=100",
+            "speed_mm_s=-120",
+            "reverse=never",
         ],
         &state,
     );
@@ -229,8 +242,18 @@ fn car_console_over_a_socket() {
     assert!(out.status.success(), "{out:?}");
     let out = car.almc(&["--json", "status"], &state);
     assert_eq!(json_of(&out)["reply"]["group"]["kind"], "none");
-    let out = car.almc(&["group", "start", "rendezvous", "--radius", "0"], &state);
+    let out = car.almc(&["group", "start", "rendezvous", "radius_units=0"], &state);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let out = car.almc(&["group", "start", "rendezvous", "radius=60"], &state);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("its parameters are radius_units"),
+        "{out:?}"
+    );
+    // With no group maneuver running, a waypoint is refused.
+    let out = car.almc(&["--json", "group", "waypoint", "300,300"], &state);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert_eq!(json_of(&out)["reply"]["refused"], "NoGroup");
 
     // A refusal is a non-zero exit with the reason.
     let out = car.almc(&["--json", "lbc", "drds"], &state);

@@ -160,7 +160,7 @@ fn check_names_a_bad_field_and_lists_points() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("bad.toml: parameter `maneuver.sped_mm_s` = 150: the experiment rejects it: unknown field `sped_mm_s`"),
+        stderr.contains("bad.toml: parameter `maneuver.sped_mm_s` = 150: the experiment rejects it: invalid experiment: phase 1: unknown field `sped_mm_s`"),
         "{stderr}"
     );
     assert!(

@@ -16,7 +16,7 @@
 use arena::radio_sim::{run_state_experiment, StateExperiment};
 use arena::world::{CarSpec, EngineKind, Tap, TapConfig, World, WorldConfig};
 use lbc_emu::Pose;
-use maneuvers::{ManeuverParams, Shape};
+use maneuvers::Shape;
 use radio_mac::{Deframer, Frame};
 use std::time::{Duration, Instant};
 use ubc_app::program::console::{flags, Reply, Request};
@@ -104,13 +104,7 @@ fn virtual_time_speed() {
         let ids = w.ids().to_vec();
         for group in ids.chunks(8) {
             let leader = group[0];
-            let p = ManeuverParams::Formation {
-                shape: Shape::Wedge,
-                leader,
-                slot: None,
-                spacing_units: 60,
-                speed_mm_s: 100,
-            };
+            let p = maneuvers::Formation::params(Shape::Wedge, leader, None, 60, 100).unwrap();
             for &id in group.iter().skip(1).chain(std::iter::once(&leader)) {
                 let _ = w.request(id, &Request::GroupStart(p), Duration::from_secs(5));
             }

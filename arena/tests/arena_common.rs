@@ -18,6 +18,8 @@ pub struct Outputs {
     pub errors: Vec<(f64, usize, f64)>,
     /// `events.jsonl`, parsed.
     pub events: Vec<Value>,
+    /// Each car's trajectory from `car<ID>.csv` (in `[[cars]]` order): `(t, x_mm, y_mm)`.
+    pub tracks: Vec<Vec<(f64, f64, f64)>>,
 }
 
 impl Outputs {
@@ -93,6 +95,20 @@ pub fn run_full(toml: &str, tag: &str) -> Outputs {
             )
         })
         .collect();
+    let tracks = exp
+        .cars
+        .iter()
+        .map(|car| {
+            let csv = std::fs::read_to_string(out.join(format!("car{}.csv", car.id))).unwrap();
+            csv.lines()
+                .skip(1)
+                .map(|row| {
+                    let c: Vec<f64> = row.split(',').map(|v| v.parse().unwrap()).collect();
+                    (c[0], c[1], c[2])
+                })
+                .collect()
+        })
+        .collect();
     nothing_left_behind();
     let _ = std::fs::remove_dir_all(&out);
     Outputs {
@@ -100,6 +116,7 @@ pub fn run_full(toml: &str, tag: &str) -> Outputs {
         doc,
         errors,
         events,
+        tracks,
     }
 }
 

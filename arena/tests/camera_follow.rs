@@ -84,11 +84,7 @@ fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
     assert_eq!(blob.class, class, "{report:?}");
     assert!((280 * 4..360 * 4).contains(&blob.cx_q2), "{report:?}");
 
-    let follow = maneuvers::ManeuverParams::CameraFollow {
-        marker: class,
-        distance_units: 200,
-        speed_mm_s: 400,
-    };
+    let follow = maneuvers::CameraFollow::params(class, 200, 400).unwrap();
     assert_eq!(
         world
             .request(FOLLOWER, &Request::GroupStart(follow), REQUEST_TIMEOUT)
@@ -97,11 +93,7 @@ fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
     );
     let start_follower = world.truth()[1].pose;
     // Up the arena and 250 mm to the side: the follower has to steer.
-    let goto = maneuvers::ManeuverParams::GoTo {
-        x: 400,
-        y: 700,
-        speed_mm_s: 150,
-    };
+    let goto = maneuvers::GoTo::params(400, 700, 150).unwrap();
     assert_eq!(
         world
             .request(LEADER, &Request::GroupStart(goto), REQUEST_TIMEOUT)

@@ -9,7 +9,6 @@ mod common;
 use arena::experiment::{self, Experiment};
 use arena::world::{CarSpec, EngineKind, World, WorldConfig};
 use lbc_emu::Pose;
-use maneuvers::ManeuverParams;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 use ubc_app::program::console::{flags, Reply, Request};
@@ -42,11 +41,7 @@ fn drive_and_kill(engine: EngineKind, stop: bool) -> (f64, Option<Duration>, Wor
         assert!(w.now() < deadline, "the car did not come up");
         w.run_for(Duration::from_millis(200));
     }
-    let goto = ManeuverParams::GoTo {
-        x: 300,
-        y: 760,
-        speed_mm_s: 200,
-    };
+    let goto = maneuvers::GoTo::params(300, 760, 200).unwrap();
     assert_eq!(
         w.request(5, &Request::GroupStart(goto), Duration::from_secs(5))
             .unwrap(),

@@ -1,5 +1,6 @@
-//! Feeds arbitrary radio payloads to the car program's console decoders (requests, replies,
-//! notices). Whatever decodes must encode again and decode to the same value.
+//! Feeds arbitrary radio payloads to the car program's console decoders (requests, among them
+//! the group command with any registered law and the program start; replies; notices).
+//! Whatever decodes must encode again and decode to the same value.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;

@@ -1,14 +1,17 @@
-//! The per-period entry point: selects the law, applies avoidance, produces the LBC command.
+//! The per-period entry point: runs the law a group command names, applies avoidance,
+//! produces the LBC command.
 
 use heapless::Vec;
 
 use crate::drive::{Drive, DriveConfig, Sv, STEER_LIMIT};
 use crate::fmath::{cos, round};
 use crate::geom::{clampf, mrad_to_rad, Vec2};
+use crate::law::{GoalArea, Guidance, LawInput, LawOptions, Me, Neighbours, Plan, Waypoint};
+use crate::laws::AnyLaw;
 use crate::safety::{field, gate, Conflict, Obstacle, SafetyConfig};
 use crate::{
-    Circle, Command, Formation, GoTo, Guidance, Inputs, Maneuver, ManeuverParams, Me, Neighbour,
-    Output, Phase, Plan, Rendezvous, Status, MM_PER_UNIT, STEER_LIMIT_MRAD,
+    Command, Inputs, ManeuverParams, Neighbour, Output, Phase, Status, ARENA_X_MAX, ARENA_Y_MAX,
+    MM_PER_UNIT, STEER_LIMIT_MRAD,
 };
 
 /// Neighbours considered per period; more are ignored (16 cars share the radio schedule).
@@ -40,18 +43,6 @@ pub struct ControllerConfig {
     pub use_move_xy: bool,
 }
 
-/// The active law.
-#[derive(Debug, Clone, PartialEq)]
-enum Active {
-    Idle,
-    /// Stand still (the law is carried out outside the controller, e.g. camera follow).
-    Hold,
-    Formation(Formation),
-    Rendezvous(Rendezvous),
-    Circle(Circle),
-    GoTo(GoTo),
-}
-
 /// What the deadlock breaker watches.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Progress {
@@ -81,7 +72,15 @@ impl Default for Progress {
 #[derive(Debug, Clone)]
 pub struct Controller {
     cfg: ControllerConfig,
-    active: Active,
+    /// Where goals may lie (from the safety configuration).
+    area: GoalArea,
+    /// The running law (`None`: idle).
+    law: Option<AnyLaw>,
+    /// Its options in force.
+    options: LawOptions,
+    /// The latest waypoint, and how many were given since the law started.
+    waypoint: Option<Waypoint>,
+    waypoints: u16,
     drive: Drive,
     /// A committed reverse manoeuvre: periods left and its command.
     escape: Option<(u8, Sv)>,
@@ -92,75 +91,72 @@ pub struct Controller {
 impl Controller {
     /// An idle controller.
     pub fn new(cfg: ControllerConfig) -> Self {
+        let m = cfg.safety.goal_margin_units();
         Self {
             cfg,
-            active: Active::Idle,
+            area: GoalArea {
+                x_min: m,
+                x_max: ARENA_X_MAX.saturating_sub(m),
+                y_min: m,
+                y_max: ARENA_Y_MAX.saturating_sub(m),
+            },
+            law: None,
+            options: LawOptions::DEFAULT,
+            waypoint: None,
+            waypoints: 0,
             drive: Drive::default(),
             escape: None,
             progress: Progress::default(),
         }
     }
 
-    /// Switch to the maneuver described by `params` (from the radio or the application).
+    /// Switches to the maneuver described by `params` (from the radio or the application);
+    /// [`ManeuverParams::IDLE`] stops. (`ManeuverParams` only holds registered laws.)
     pub fn start(&mut self, params: ManeuverParams) {
-        self.active = match params {
-            ManeuverParams::Idle => Active::Idle,
-            ManeuverParams::Formation {
-                shape,
-                leader,
-                slot,
-                spacing_units,
-                speed_mm_s,
-            } => Active::Formation(Formation::new(
-                shape,
-                leader,
-                slot,
-                spacing_units,
-                speed_mm_s,
-            )),
-            ManeuverParams::Rendezvous {
-                radius_units,
-                speed_mm_s,
-            } => Active::Rendezvous(Rendezvous::new(radius_units, speed_mm_s)),
-            ManeuverParams::Circle {
-                cx,
-                cy,
-                radius_units,
-                speed_mm_s,
-            } => Active::Circle(Circle::new(cx, cy, radius_units, speed_mm_s)),
-            ManeuverParams::GoTo { x, y, speed_mm_s } => {
-                let (x, y) = self.clamp(x, y);
-                Active::GoTo(GoTo::new(x, y, speed_mm_s))
-            }
-            ManeuverParams::CameraFollow { .. } => Active::Hold,
-        };
+        self.law = None;
+        self.options = params.options().unwrap_or_default();
+        self.waypoint = None;
+        self.waypoints = 0;
         self.drive = Drive::default();
         self.escape = None;
         self.progress = Progress::default();
+        self.law = AnyLaw::new(params.law(), params.values());
     }
 
-    /// Stop the maneuver.
+    /// Stops the maneuver.
     pub fn stop(&mut self) {
-        self.start(ManeuverParams::Idle);
+        self.start(ManeuverParams::IDLE);
     }
 
-    /// A goal moved inside the walls (see [`SafetyConfig::clamp_goal`]).
-    fn clamp(&self, x: u16, y: u16) -> (u16, u16) {
-        let p = self
-            .cfg
-            .safety
-            .clamp_goal(Vec2::new(f32::from(x), f32::from(y)));
-        // Clamped inside the arena: the casts are exact.
-        (round(p.x) as u16, round(p.y) as u16)
+    /// The running law, if any.
+    pub fn law(&self) -> Option<&AnyLaw> {
+        self.law.as_ref()
     }
 
-    /// Next waypoint of a formation leader (ignored by other laws and by followers); moved
-    /// inside the walls like every goal.
-    pub fn set_waypoint(&mut self, x: u16, y: u16) {
-        let (x, y) = self.clamp(x, y);
-        if let Active::Formation(f) = &mut self.active {
-            f.set_waypoint(x, y);
+    /// The options in force.
+    pub fn options(&self) -> LawOptions {
+        self.options
+    }
+
+    /// Where goals may lie: inside the walls by the margins of [`SafetyConfig::clamp_goal`].
+    pub fn area(&self) -> GoalArea {
+        self.area
+    }
+
+    /// Gives the running law a waypoint (moved inside the walls like every goal); `false`
+    /// while idle.
+    pub fn set_waypoint(&mut self, x: u16, y: u16) -> bool {
+        if self.law.is_none() {
+            return false;
         }
+        let (x, y) = self.area.clamp(x, y);
+        self.waypoint = Some(Waypoint {
+            x,
+            y,
+            index: self.waypoints,
+        });
+        self.waypoints = self.waypoints.wrapping_add(1);
+        true
     }
 
     /// One control period.
@@ -181,23 +177,27 @@ impl Controller {
                 }
             }
         }
-        let plan = match &mut self.active {
-            Active::Idle => Plan {
-                guidance: Guidance::Hold,
-                phase: Phase::Idle,
-                converged: false,
-                error_units: 0.0,
-            },
-            Active::Hold => Plan {
-                guidance: Guidance::Hold,
-                phase: Phase::Hold,
-                converged: false,
-                error_units: 0.0,
-            },
-            Active::Formation(m) => m.plan(&me, &fresh),
-            Active::Rendezvous(m) => m.plan(&me, &fresh),
-            Active::Circle(m) => m.plan(&me, &fresh),
-            Active::GoTo(m) => m.plan(&me, &fresh),
+        let nearest;
+        let selected: &[Neighbour] = match self.options.neighbours {
+            Neighbours::All => &fresh,
+            Neighbours::None => &[],
+            Neighbours::Nearest(k) => {
+                nearest = nearest_of(&fresh, inputs.own.x, inputs.own.y, k);
+                &nearest
+            }
+        };
+        let area = self.area;
+        let plan = match &mut self.law {
+            None => Plan::hold(Phase::Idle, false, 0),
+            Some(law) => law.step(&LawInput {
+                now_us: inputs.now_us,
+                id: inputs.id,
+                own: inputs.own,
+                neighbours: selected,
+                waypoint: self.waypoint,
+                options: self.options,
+                area,
+            }),
         };
         let (command, avoided) = self.command(&me, &obstacles, &plan, inputs.now_us);
         let p = &mut self.progress;
@@ -208,7 +208,7 @@ impl Controller {
             status: Status {
                 phase: if avoided { Phase::Avoid } else { plan.phase },
                 converged: plan.converged,
-                error_units: clampf(plan.error_units, 0.0, f32::from(u16::MAX)) as u16,
+                error_units: plan.error_units,
             },
         }
     }
@@ -228,10 +228,11 @@ impl Controller {
         now_us: u64,
     ) {
         let p = &mut self.progress;
+        let error = f32::from(plan.error_units);
         let idle = desired.norm() < self.cfg.drive.creep_mm_s || self.escape.is_some();
-        if idle || plan.error_units < p.best - STUCK_PROGRESS_UNITS {
+        if idle || error < p.best - STUCK_PROGRESS_UNITS {
             *p = Progress {
-                best: plan.error_units,
+                best: error,
                 since_us: now_us,
                 periods: 0,
                 avoided: 0,
@@ -244,7 +245,7 @@ impl Controller {
         }
         let tries = p.tries;
         *p = Progress {
-            best: plan.error_units,
+            best: error,
             since_us: now_us,
             periods: 0,
             avoided: 0,
@@ -293,11 +294,14 @@ impl Controller {
         let safety = &cfg.safety;
         let (desired, holding) = match plan.guidance {
             Guidance::Hold => (Vec2::ZERO, true),
-            Guidance::Velocity(v) => (v, false),
-            Guidance::Point { at, speed_mm_s } => {
-                let at = safety.clamp_goal(at);
+            Guidance::VelocityF(v) => (v, false),
+            Guidance::Velocity { vx_mm_s, vy_mm_s } => {
+                (Vec2::new(f32::from(vx_mm_s), f32::from(vy_mm_s)), false)
+            }
+            Guidance::Point { x, y, speed_mm_s } => {
+                let at = safety.clamp_goal(Vec2::new(f32::from(x), f32::from(y)));
                 let err = at - me.pos;
-                let speed = speed_mm_s.min(err.norm() * POINT_GAIN * MM_PER_UNIT);
+                let speed = f32::from(speed_mm_s).min(err.norm() * POINT_GAIN * MM_PER_UNIT);
                 (err.unit() * speed, false)
             }
         };
@@ -313,16 +317,18 @@ impl Controller {
                 return (to_command(c), true);
             }
         }
-        let sv = self.drive.track(&self.cfg.drive, me.heading, v);
+        let sv = self
+            .drive
+            .track(&self.cfg.drive, self.options.reverse, me.heading, v);
         if sv == Sv::default() {
             return (Command::Stop, pushed);
         }
         let refused = gate(safety, me, fresh, sv);
         if refused.is_ok() {
-            if let (Guidance::Point { at, .. }, true, false) =
+            if let (Guidance::Point { x, y, .. }, true, false) =
                 (plan.guidance, self.cfg.use_move_xy, pushed)
             {
-                let at = safety.clamp_goal(at);
+                let at = safety.clamp_goal(Vec2::new(f32::from(x), f32::from(y)));
                 // The clamp keeps both inside the arena, so the casts are exact.
                 return (
                     Command::MoveXy {
@@ -408,6 +414,23 @@ impl Controller {
     }
 }
 
+/// The `k` nearest of `fresh` to `(x, y)`, nearest first (ties in the order heard).
+fn nearest_of(fresh: &[Neighbour], x: u16, y: u16, k: u8) -> Vec<Neighbour, MAX_NEIGHBOURS> {
+    let d2 = |n: &Neighbour| {
+        let dx = i32::from(n.pose.x) - i32::from(x);
+        let dy = i32::from(n.pose.y) - i32::from(y);
+        dx * dx + dy * dy
+    };
+    let mut out: Vec<Neighbour, MAX_NEIGHBOURS> = Vec::new();
+    for n in fresh {
+        let at = out.iter().position(|o| d2(o) > d2(n)).unwrap_or(out.len());
+        // At most MAX_NEIGHBOURS fresh neighbours: never full.
+        let _ = out.insert(at, *n);
+    }
+    out.truncate(usize::from(k));
+    out
+}
+
 /// Rounded and clamped to what the LBC accepts.
 fn to_command(sv: Sv) -> Command {
     let lim = f32::from(STEER_LIMIT_MRAD);
@@ -421,7 +444,9 @@ fn to_command(sv: Sv) -> Command {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{CarPose, Shape};
+    use crate::{
+        CameraFollow, CarPose, Circle, Formation, GoTo, Overrides, Rendezvous, Reverse, Shape,
+    };
 
     fn inputs<'a>(own: CarPose, neighbours: &'a [Neighbour]) -> Inputs<'a> {
         Inputs {
@@ -452,11 +477,7 @@ mod tests {
     #[test]
     fn camera_follow_holds() {
         let mut c = Controller::new(ControllerConfig::default());
-        c.start(ManeuverParams::CameraFollow {
-            marker: 1,
-            distance_units: 80,
-            speed_mm_s: 200,
-        });
+        c.start(CameraFollow::params(1, 80, 200).unwrap());
         let out = c.step(&inputs(pose(300, 400, 0), &[]));
         assert_eq!(out.command, Command::Stop);
         assert_eq!(out.status.phase, Phase::Hold);
@@ -465,11 +486,7 @@ mod tests {
     #[test]
     fn goto_drives_then_stops() {
         let mut c = Controller::new(ControllerConfig::default());
-        c.start(ManeuverParams::GoTo {
-            x: 300,
-            y: 600,
-            speed_mm_s: 250,
-        });
+        c.start(GoTo::params(300, 600, 250).unwrap());
         let out = c.step(&inputs(pose(300, 400, 1571), &[]));
         assert_eq!(
             out.command,
@@ -493,11 +510,7 @@ mod tests {
         };
         let mut c = Controller::new(cfg);
         // A target beyond the wall is clamped into the keep-in area.
-        c.start(ManeuverParams::GoTo {
-            x: 300,
-            y: 1000,
-            speed_mm_s: 250,
-        });
+        c.start(GoTo::params(300, 1000, 250).unwrap());
         let out = c.step(&inputs(pose(300, 400, 1571), &[]));
         assert_eq!(out.command, Command::MoveXy { x: 300, y: 742 });
     }
@@ -505,11 +518,7 @@ mod tests {
     #[test]
     fn blocked_car_avoids_or_stops() {
         let mut c = Controller::new(ControllerConfig::default());
-        c.start(ManeuverParams::GoTo {
-            x: 300,
-            y: 700,
-            speed_mm_s: 300,
-        });
+        c.start(GoTo::params(300, 700, 300).unwrap());
         // A lower-ID car stands right in front.
         let n = [Neighbour {
             id: 1,
@@ -528,11 +537,7 @@ mod tests {
     #[test]
     fn stale_neighbours_are_ignored() {
         let mut c = Controller::new(ControllerConfig::default());
-        c.start(ManeuverParams::GoTo {
-            x: 300,
-            y: 700,
-            speed_mm_s: 300,
-        });
+        c.start(GoTo::params(300, 700, 300).unwrap());
         let n = [Neighbour {
             id: 1,
             pose: pose(300, 465, 1571),
@@ -545,25 +550,115 @@ mod tests {
     #[test]
     fn follower_without_leader_stops() {
         let mut c = Controller::new(ControllerConfig::default());
-        c.start(ManeuverParams::Formation {
-            shape: Shape::Line,
-            leader: 1,
-            slot: None,
-            spacing_units: 60,
-            speed_mm_s: 100,
-        });
+        c.start(Formation::params(Shape::Line, 1, None, 60, 100).unwrap());
         let out = c.step(&inputs(pose(300, 400, 0), &[]));
         assert_eq!(out.command, Command::Stop);
         assert_eq!(out.status.phase, Phase::NoReference);
     }
 
     #[test]
+    fn the_goal_area_is_what_clamp_goal_keeps() {
+        let c = Controller::new(ControllerConfig::default());
+        let a = c.area();
+        let safety = SafetyConfig::default();
+        let lo = safety.clamp_goal(Vec2::ZERO);
+        let hi = safety.clamp_goal(Vec2::new(1e6, 1e6));
+        assert_eq!(
+            (a.x_min, a.x_max, a.y_min, a.y_max),
+            (lo.x as u16, hi.x as u16, lo.y as u16, hi.y as u16)
+        );
+        assert_eq!((a.x_min, a.y_max), (58, 742));
+    }
+
+    #[test]
+    fn every_law_takes_waypoints() {
+        let mut c = Controller::new(ControllerConfig::default());
+        assert!(!c.set_waypoint(300, 300), "idle");
+        c.start(GoTo::params(300, 600, 250).unwrap());
+        // A waypoint behind the car replaces the target: it turns towards it.
+        assert!(c.set_waypoint(300, 1000));
+        let out = c.step(&inputs(pose(300, 400, 1571), &[]));
+        assert_eq!(out.status.error_units, 342, "clamped to y 742");
+        c.start(Circle::params(300, 400, 100, 0).unwrap());
+        let on_circle = c.step(&inputs(pose(400, 400, 1571), &[]));
+        assert!(on_circle.status.converged);
+        // The centre moves: the car is 100 units off its circle now.
+        assert!(c.set_waypoint(300, 500));
+        let off = c.step(&inputs(pose(400, 400, 1571), &[]));
+        assert!(
+            !off.status.converged && off.status.error_units > 30,
+            "{off:?}"
+        );
+    }
+
+    #[test]
+    fn the_neighbours_option_selects_what_the_law_sees() {
+        let others = [
+            Neighbour {
+                id: 3,
+                pose: pose(100, 100, 0),
+                age_us: 0,
+            },
+            Neighbour {
+                id: 4,
+                pose: pose(400, 400, 0),
+                age_us: 0,
+            },
+        ];
+        let error_with = |n: Option<Neighbours>| {
+            let mut c = Controller::new(ControllerConfig::default());
+            c.start(
+                Rendezvous::params(10, 200)
+                    .unwrap()
+                    .with_overrides(Overrides {
+                        neighbours: n,
+                        ..Overrides::default()
+                    }),
+            );
+            c.step(&inputs(pose(300, 400, 0), &others))
+                .status
+                .error_units
+        };
+        // All: mean of (300,400), (100,100), (400,400) = (266.7, 300): 105 units away.
+        assert_eq!(error_with(None), 105);
+        // The nearest only: mean of (300,400) and (400,400) = 50 units away.
+        assert_eq!(error_with(Some(Neighbours::Nearest(1))), 50);
+        // None: alone, at its own rendezvous.
+        assert_eq!(error_with(Some(Neighbours::None)), 0);
+    }
+
+    #[test]
+    fn the_reverse_option_reaches_the_steering() {
+        let velocity = |r: Reverse| {
+            let mut c = Controller::new(ControllerConfig::default());
+            c.start(
+                GoTo::params(300, 200, 200)
+                    .unwrap()
+                    .with_overrides(Overrides {
+                        reverse: Some(r),
+                        ..Overrides::default()
+                    }),
+            );
+            match c.step(&inputs(pose(300, 400, 1571), &[])).command {
+                Command::MoveSv {
+                    velocity_mm_s,
+                    steering_mrad,
+                } => (velocity_mm_s, steering_mrad),
+                other => panic!("{other:?}"),
+            }
+        };
+        // The target is straight behind.
+        assert_eq!(velocity(Reverse::Allowed), (-200, 0));
+        let (v, s) = velocity(Reverse::Turn);
+        assert!(v < 0 && s.abs() == 523, "{v} {s}");
+        let (v, s) = velocity(Reverse::Never);
+        assert!(v == 60 && s.abs() == 523, "{v} {s}");
+    }
+
+    #[test]
     fn commands_stay_within_lbc_limits() {
         let mut c = Controller::new(ControllerConfig::default());
-        c.start(ManeuverParams::Rendezvous {
-            radius_units: 10,
-            speed_mm_s: 2047,
-        });
+        c.start(Rendezvous::params(10, 2047).unwrap());
         let n = [Neighbour {
             id: 1,
             pose: pose(600, 0, 0),

@@ -3,12 +3,17 @@
 //! The car is a kinematic bicycle about the rear axle (wheelbase 80 mm, +/-30 degrees of
 //! steering), so it cannot move sideways: the heading is turned towards the desired direction
 //! with a yaw rate proportional to the heading error, and the speed is the projection of the
-//! desired velocity on the heading, never below a creep speed so that the car can turn. A
-//! desired direction more than [`REVERSE_ABOVE`] behind the car is driven in reverse, with
-//! hysteresis so the mode does not chatter.
+//! desired velocity on the heading, never below a creep speed so that the car can turn. What
+//! happens to a desired direction more than [`REVERSE_ABOVE`] behind the car is the law's
+//! [`Reverse`] option: driven in reverse (`Allowed`), turned round by backing up on full lock
+//! first (`Turn`), or turned round forward on full lock (`Never`); each with hysteresis so the
+//! mode does not chatter.
+
+use core::f32::consts::{FRAC_PI_2, PI};
 
 use crate::fmath::{atan, cos, sin_cos, tan};
 use crate::geom::{clampf, wrap, Vec2};
+use crate::law::Reverse;
 use crate::{MM_PER_UNIT, WHEELBASE_MM};
 
 /// Steering limit, rad.
@@ -56,6 +61,8 @@ pub struct Sv {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Drive {
     reverse: bool,
+    /// Side of a turn round on full lock (+1 left, -1 right; 0: not turning round).
+    turn: i8,
 }
 
 /// Steering that turns the direction of travel by `yaw_rate` rad/s at `velocity` mm/s.
@@ -76,35 +83,76 @@ impl Drive {
         self.reverse
     }
 
-    /// Steering and speed that follow `desired` (mm/s, world frame) from `heading` (rad).
-    pub fn track(&mut self, cfg: &DriveConfig, heading: f32, desired: Vec2) -> Sv {
+    /// Steering and speed that follow `desired` (mm/s, world frame) from `heading` (rad), using
+    /// reverse as `mode` allows.
+    pub fn track(&mut self, cfg: &DriveConfig, mode: Reverse, heading: f32, desired: Vec2) -> Sv {
         let speed = desired.norm();
         if speed < STOP_BELOW_MM_S {
             return Sv::default();
         }
         let psi = desired.angle();
         let e_fwd = wrap(psi - heading);
+        match mode {
+            Reverse::Allowed => self.turn = 0,
+            Reverse::Turn => return self.turn_round(cfg, speed, e_fwd, true),
+            Reverse::Never => return self.turn_round(cfg, speed, e_fwd, false),
+        }
         if self.reverse {
             // Back to forward once the nose points within 40 degrees of the way.
-            self.reverse = e_fwd.abs() >= core::f32::consts::PI - REVERSE_ABOVE;
+            self.reverse = e_fwd.abs() >= PI - REVERSE_ABOVE;
         } else {
             self.reverse = e_fwd.abs() > REVERSE_ABOVE;
         }
         let (e, sign, max) = if self.reversing() {
-            (
-                wrap(psi - heading - core::f32::consts::PI),
-                -1.0,
-                cfg.max_reverse_mm_s,
-            )
+            (wrap(psi - heading - PI), -1.0, cfg.max_reverse_mm_s)
         } else {
             (e_fwd, 1.0, cfg.max_mm_s)
         };
-        let along = speed * cos(e);
-        let v = sign * clampf(along.max(cfg.creep_mm_s.min(speed)), 0.0, max);
-        Sv {
-            steering: steering_for(cfg.heading_gain * e, v),
-            velocity: v,
+        forward_or_back(cfg, speed, e, sign, max)
+    }
+
+    /// `Turn` and `Never`: forward tracking, and a way far behind turned round on full lock
+    /// (backing up first with `back`) to the side it started on, until the nose is within 90
+    /// degrees of the way.
+    fn turn_round(&mut self, cfg: &DriveConfig, speed: f32, e: f32, back: bool) -> Sv {
+        let far = if self.turn != 0 {
+            e.abs() > FRAC_PI_2
+        } else {
+            e.abs() > REVERSE_ABOVE
+        };
+        if !far {
+            self.turn = 0;
+            self.reverse = false;
+            return forward_or_back(cfg, speed, e, 1.0, cfg.max_mm_s);
         }
+        if self.turn == 0 {
+            self.turn = if e >= 0.0 { 1 } else { -1 };
+        }
+        let side = f32::from(self.turn);
+        self.reverse = back;
+        if back {
+            // Backing up with the wheels turned away from the way swings the nose towards it.
+            Sv {
+                steering: -side * STEER_LIMIT,
+                velocity: -clampf(speed, cfg.creep_mm_s, cfg.max_reverse_mm_s),
+            }
+        } else {
+            Sv {
+                steering: side * STEER_LIMIT,
+                velocity: cfg.creep_mm_s.min(speed),
+            }
+        }
+    }
+}
+
+/// Steering and speed along heading error `e` (rad) in direction `sign` (1 forward, -1
+/// reverse) up to `max` mm/s.
+fn forward_or_back(cfg: &DriveConfig, speed: f32, e: f32, sign: f32, max: f32) -> Sv {
+    let along = speed * cos(e);
+    let v = sign * clampf(along.max(cfg.creep_mm_s.min(speed)), 0.0, max);
+    Sv {
+        steering: steering_for(cfg.heading_gain * e, v),
+        velocity: v,
     }
 }
 
@@ -126,12 +174,16 @@ pub fn predict(pos: Vec2, heading: f32, sv: Sv, t: f32) -> (Vec2, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use core::f32::consts::{FRAC_PI_2, PI};
 
     #[test]
     fn straight_ahead() {
         let mut d = Drive::default();
-        let sv = d.track(&DriveConfig::default(), 0.0, Vec2::new(200.0, 0.0));
+        let sv = d.track(
+            &DriveConfig::default(),
+            Reverse::Allowed,
+            0.0,
+            Vec2::new(200.0, 0.0),
+        );
         assert_eq!(
             sv,
             Sv {
@@ -144,7 +196,12 @@ mod tests {
     #[test]
     fn turns_left_towards_left_target_at_creep() {
         let mut d = Drive::default();
-        let sv = d.track(&DriveConfig::default(), 0.0, Vec2::new(0.0, 200.0));
+        let sv = d.track(
+            &DriveConfig::default(),
+            Reverse::Allowed,
+            0.0,
+            Vec2::new(0.0, 200.0),
+        );
         assert!((sv.steering - STEER_LIMIT).abs() < 1e-6);
         assert!((sv.velocity - 60.0).abs() < 1e-3);
     }
@@ -154,24 +211,66 @@ mod tests {
         let mut d = Drive::default();
         let cfg = DriveConfig::default();
         // Desired direction slightly right of straight behind.
-        let sv = d.track(&cfg, 0.0, Vec2::new(-200.0, -20.0));
+        let sv = d.track(&cfg, Reverse::Allowed, 0.0, Vec2::new(-200.0, -20.0));
         assert!(d.reversing());
         assert!(sv.velocity < -150.0);
         // Backing up turns the tail towards -Y: steer left (the nose swings to +Y... rear to -Y).
         let (p, h) = predict(Vec2::ZERO, 0.0, sv, 0.5);
         assert!(p.x < 0.0 && p.y < 0.0 && h > 0.0, "{p:?} {h}");
         // 90 degrees off: stays in reverse.
-        d.track(&cfg, 0.0, Vec2::new(0.0, 200.0));
+        d.track(&cfg, Reverse::Allowed, 0.0, Vec2::new(0.0, 200.0));
         assert!(d.reversing());
-        d.track(&cfg, 0.0, Vec2::new(200.0, 10.0));
+        d.track(&cfg, Reverse::Allowed, 0.0, Vec2::new(200.0, 10.0));
         assert!(!d.reversing());
+    }
+
+    #[test]
+    fn never_turns_round_forward_on_one_side() {
+        let mut d = Drive::default();
+        let cfg = DriveConfig::default();
+        // Way straight behind, a little to the left: forward on full left lock at creep.
+        let sv = d.track(&cfg, Reverse::Never, 0.0, Vec2::new(-200.0, 1.0));
+        assert_eq!(sv.velocity, 60.0);
+        assert!((sv.steering - STEER_LIMIT).abs() < 1e-6);
+        // The way swings to the other side of straight behind: it keeps turning left.
+        let sv = d.track(&cfg, Reverse::Never, 0.0, Vec2::new(-200.0, -1.0));
+        assert!((sv.steering - STEER_LIMIT).abs() < 1e-6, "{sv:?}");
+        assert!(!d.reversing());
+        // Nose within 90 degrees: ordinary tracking.
+        let sv = d.track(&cfg, Reverse::Never, 0.0, Vec2::new(200.0, 10.0));
+        assert!(sv.velocity > 150.0 && sv.steering.abs() < 0.3, "{sv:?}");
+    }
+
+    #[test]
+    fn turn_backs_up_swinging_the_nose_towards_the_way() {
+        let mut d = Drive::default();
+        let cfg = DriveConfig::default();
+        // Way behind and to the left: back up steering right.
+        let sv = d.track(&cfg, Reverse::Turn, 0.0, Vec2::new(-200.0, 20.0));
+        assert!(
+            d.reversing() && sv.velocity < 0.0 && sv.steering < 0.0,
+            "{sv:?}"
+        );
+        let (_, h) = predict(Vec2::ZERO, 0.0, sv, 0.5);
+        assert!(h > 0.0, "the nose turns left: {h}");
+        // Still more than 90 degrees off: keeps backing.
+        let sv = d.track(&cfg, Reverse::Turn, 1.2, Vec2::new(-200.0, 20.0));
+        assert!(sv.velocity < 0.0, "{sv:?}");
+        // Within 90 degrees: forward.
+        let sv = d.track(&cfg, Reverse::Turn, 1.8, Vec2::new(-200.0, 20.0));
+        assert!(sv.velocity > 0.0 && !d.reversing(), "{sv:?}");
     }
 
     #[test]
     fn stop_for_tiny_speeds() {
         let mut d = Drive::default();
         assert_eq!(
-            d.track(&DriveConfig::default(), 1.0, Vec2::new(1.0, 1.0)),
+            d.track(
+                &DriveConfig::default(),
+                Reverse::Allowed,
+                1.0,
+                Vec2::new(1.0, 1.0)
+            ),
             Sv::default()
         );
     }

@@ -5,31 +5,38 @@
 //! broadcasts (with their age), its ID and the maneuver parameters. It answers with one LBC
 //! motion command (`MOVE_SV`, `MOVE_XY` or `STOP`) and a status to broadcast.
 //!
-//! Each law ([`Formation`], [`Rendezvous`], [`Circle`], [`GoTo`]) implements [`Maneuver`] and
-//! only says where the car should go ([`Guidance`]). The [`Controller`] layers car and wall
-//! avoidance on top ([`safety`]) and turns the result into steering and velocity for the
-//! kinematic bicycle ([`drive`]). The parameters of every law fit into 6 bytes
-//! ([`ManeuverParams::encode`]), the field width of a radio group message.
+//! Each law implements [`Law`] ([`law`]: what it sees, what it answers, its parameters and
+//! options) and only says where the car should go ([`Guidance`]). The laws are registered in
+//! one list ([`laws`]: formation, rendezvous, circle, go-to, camera follow, and whatever a
+//! researcher adds), which the firmware, `almc` and the experiment files read. The
+//! [`Controller`] runs the law a group command names ([`ManeuverParams`], wire form in
+//! [`params`]), layers car and wall avoidance on top ([`safety`]) and turns the result into
+//! steering and velocity for the kinematic bicycle ([`drive`]).
 //!
 //! Units are the project's: X/Y in tracking units of 2.5 mm (arena X 0..=600, Y 0..=800),
 //! heading in mrad counter-clockwise from +X, steering in signed mrad (+ = left, limit +/-523),
-//! velocity in signed mm/s, time in microseconds. Internally the laws use `f32` with the
-//! compact functions of [`fmath`] (no `f64`, no `libm`, so the FPU-less firmware stays
-//! small); everything is deterministic and free of heap and `unsafe`.
+//! velocity in signed mm/s, time in microseconds. A law's inputs and outputs are integers in
+//! these units, so a law can be written without floating point ([`imath`]); the built-in
+//! laws and the controller use `f32` with the compact functions of [`fmath`] (no `f64`, no
+//! `libm`, so the FPU-less firmware stays small). Everything is deterministic and free of
+//! heap and `unsafe`.
 
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod circle;
+pub mod args;
 pub mod controller;
 pub mod drive;
 pub mod fmath;
-pub mod formation;
 pub mod geom;
-pub mod goto;
+pub mod imath;
+pub mod law;
+pub mod laws;
+pub mod param;
 pub mod params;
-pub mod rendezvous;
+pub mod reference;
+pub mod registry;
 pub mod safety;
 
 #[cfg(test)]
@@ -37,15 +44,14 @@ mod sim;
 #[cfg(test)]
 mod sim_tests;
 
-pub use circle::Circle;
 pub use controller::{Controller, ControllerConfig, MAX_NEIGHBOURS};
-pub use formation::{Formation, Shape};
-pub use goto::GoTo;
-pub use params::{DecodeError, EncodeError, ManeuverParams, ParamField, PARAMS_LEN};
-pub use rendezvous::Rendezvous;
+pub use law::{Guidance, Law, LawInput, LawOptions, Me, Neighbours, Plan, Reverse, Waypoint};
+pub use laws::formation::Shape;
+pub use laws::{AnyLaw, CameraFollow, Circle, Formation, GoTo, Rendezvous, LAWS};
+pub use param::{Param, Values};
+pub use params::{DecodeError, EncodeError, ManeuverParams, Overrides};
+pub use registry::{LawInfo, Registered};
 pub use safety::SafetyConfig;
-
-use geom::Vec2;
 
 /// Millimetres per tracking unit.
 pub const MM_PER_UNIT: f32 = 2.5;
@@ -191,56 +197,6 @@ pub struct Output {
     pub command: Command,
     /// Status to broadcast.
     pub status: Status,
-}
-
-/// What a law wants, before avoidance and steering.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Guidance {
-    /// Move with this world-frame velocity (mm/s along +X, +Y).
-    Velocity(Vec2),
-    /// Drive to a fixed point (tracking units) at up to `speed_mm_s`, slowing down on arrival;
-    /// the LBC's own `MOVE_XY` may be used for it.
-    Point {
-        /// The point, tracking units.
-        at: Vec2,
-        /// Cruise speed, mm/s.
-        speed_mm_s: f32,
-    },
-    /// Stand still.
-    Hold,
-}
-
-/// Goal and convergence report of a law for one period.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Plan {
-    /// What to do.
-    pub guidance: Guidance,
-    /// Phase to report when avoidance does not intervene.
-    pub phase: Phase,
-    /// Convergence test of the law.
-    pub converged: bool,
-    /// Distance to the goal, tracking units.
-    pub error_units: f32,
-}
-
-/// A group-maneuver control law.
-pub trait Maneuver {
-    /// Decide where this car should go, from its own pose and its fresh neighbours
-    /// (`fresh` holds only the neighbours younger than the stale limit).
-    fn plan(&mut self, me: &Me, fresh: &[Neighbour]) -> Plan;
-}
-
-/// This car as the laws see it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Me {
-    /// Car ID.
-    pub id: u8,
-    /// Position (rear axle), tracking units.
-    pub pos: Vec2,
-    /// Heading, rad.
-    pub heading: f32,
-    /// Signed speed, mm/s.
-    pub speed: f32,
 }
 
 #[cfg(test)]

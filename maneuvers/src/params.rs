@@ -1,110 +1,88 @@
-//! Maneuver parameters and their 6-byte wire form.
+//! A group command's maneuver: the law's ID, option overrides and parameter values, and
+//! their wire form.
 //!
-//! Six bytes is the widest field block of a radio group message, so a whole maneuver (law and
-//! parameters) can be announced in one frame. The bytes hold a little-endian 48-bit word; the
-//! low 3 bits select the law and the fields follow in the order of the table in
-//! `docs/maneuvers.md`. Unused high bits must be zero, so decoding is canonical: whatever
-//! decodes re-encodes to the same bytes.
+//! The wire form (the body of the console's `GroupStart`, version 2; field tables in
+//! `docs/radio-protocol.md`) is a 4-byte header (law ID, reverse mode, arrival radius,
+//! neighbour selection; 0 in an option byte keeps the law's default) followed by the
+//! parameters in the law's order, each as `value - min`, little-endian, in the narrowest of
+//! 1, 2 or 4 bytes that holds its range. The parameter layout comes from the registration
+//! list (`laws/mod.rs`), so a law ID this firmware does not know is refused
+//! ([`DecodeError::UnknownLaw`]). Decoding is canonical: whatever decodes re-encodes to the
+//! same bytes.
 
-use crate::formation::Shape;
+use crate::law::{LawOptions, Neighbours, Reverse, MAX_NEAREST};
+use crate::laws;
+use crate::param::{Range, Values, MAX_PARAMS};
 
-/// Length of an encoded [`ManeuverParams`].
-pub const PARAMS_LEN: usize = 6;
+/// Length of the header before the parameters.
+pub const HEADER_LEN: usize = 4;
+/// Longest wire form: what fits a console request body (32 bytes less the version byte).
+pub const MAX_LEN: usize = 31;
+/// Law ID 0: no maneuver (the car stops).
+pub const IDLE_LAW: u8 = 0;
 
-/// Slot value on the wire meaning "take the slot from my rank among the followers".
-const SLOT_AUTO: u64 = 15;
+const NEIGHBOURS_NONE: u8 = 254;
+const NEIGHBOURS_ALL: u8 = 255;
 
-/// A law and its parameters.
+/// Options a group command sets instead of the law's defaults.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum ManeuverParams {
-    /// No maneuver: the car stops.
-    #[default]
-    Idle,
-    /// Leader-follower formation.
-    Formation {
-        /// Line or wedge.
-        shape: Shape,
-        /// Leader's car ID, 1..=126.
-        leader: u8,
-        /// Slot index 0..=14, or `None` to use the rank of this car's ID among the followers.
-        slot: Option<u8>,
-        /// Distance between neighbouring slots, tracking units, 1..=511.
-        spacing_units: u16,
-        /// Leader's cruise speed towards its waypoint, mm/s, 0..=2047.
-        speed_mm_s: u16,
-    },
-    /// Rendezvous by consensus on the mean position.
-    Rendezvous {
-        /// Arrival radius around the consensus point, tracking units, 1..=511.
-        radius_units: u16,
-        /// Maximum speed, mm/s, 0..=2047.
-        speed_mm_s: u16,
-    },
-    /// Even spacing on a circle, rotating.
-    Circle {
-        /// Centre X, tracking units, 0..=1023.
-        cx: u16,
-        /// Centre Y, tracking units, 0..=1023.
-        cy: u16,
-        /// Radius, tracking units, 1..=511.
-        radius_units: u16,
-        /// Speed along the circle, mm/s, -2048..=2047; positive is counter-clockwise.
-        speed_mm_s: i16,
-    },
-    /// Drive to a point and stop.
-    GoTo {
-        /// Target X, tracking units, 0..=1023.
-        x: u16,
-        /// Target Y, tracking units, 0..=1023.
-        y: u16,
-        /// Maximum speed, mm/s, 0..=2047.
-        speed_mm_s: u16,
-    },
-    /// Follow the car carrying a marker seen by the camera. The camera part of the program
-    /// drives the car; the [`crate::Controller`] itself holds still for this law.
-    CameraFollow {
-        /// Vision colour class index of the leader's marker, 0..=255.
-        marker: u8,
-        /// Distance to keep behind the leader, tracking units, 1..=511.
-        distance_units: u16,
-        /// Maximum speed, mm/s, 0..=2047.
-        speed_mm_s: u16,
-    },
+pub struct Overrides {
+    /// Reverse mode.
+    pub reverse: Option<Reverse>,
+    /// Arrival radius, tracking units (1..=255).
+    pub arrival_units: Option<u8>,
+    /// Neighbour selection.
+    pub neighbours: Option<Neighbours>,
 }
 
-/// A parameter field, named in errors.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+impl Overrides {
+    /// `defaults` with these overrides applied.
+    pub fn apply(&self, defaults: LawOptions) -> LawOptions {
+        LawOptions {
+            reverse: self.reverse.unwrap_or(defaults.reverse),
+            arrival_units: self.arrival_units.unwrap_or(defaults.arrival_units),
+            neighbours: self.neighbours.unwrap_or(defaults.neighbours),
+        }
+    }
+}
+
+/// A law and its parameters, as a group command carries them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum ParamField {
-    /// Formation leader ID.
-    Leader,
-    /// Formation slot.
-    Slot,
-    /// Formation spacing.
-    Spacing,
-    /// A radius.
-    Radius,
-    /// A speed.
-    Speed,
-    /// An X coordinate.
-    X,
-    /// A Y coordinate.
-    Y,
-    /// Camera-follow distance.
-    Distance,
-    /// Camera-follow marker class.
-    Marker,
+pub struct ManeuverParams {
+    law: u8,
+    overrides: Overrides,
+    values: Values,
 }
 
-/// Why parameters cannot be encoded.
+/// Why parameters cannot be built or encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EncodeError {
-    /// The field's value does not fit its wire width or is not allowed.
+    /// No law with this ID is registered.
+    UnknownLaw {
+        /// The law ID.
+        law: u8,
+    },
+    /// Not as many values as the law has parameters.
+    Count {
+        /// Parameters of the law.
+        expected: u8,
+        /// Values given.
+        got: u8,
+    },
+    /// A value is outside its parameter's range.
     FieldOutOfRange {
-        /// Which field.
-        field: ParamField,
+        /// Index of the parameter in the law's list.
+        param: u8,
+    },
+    /// An option override is not valid (`Nearest(0)`, more than 16 nearest).
+    BadOption,
+    /// The output buffer is too small.
+    BufferTooSmall {
+        /// Bytes needed.
+        needed: usize,
     },
 }
 
@@ -112,442 +90,232 @@ pub enum EncodeError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DecodeError {
-    /// Not [`PARAMS_LEN`] bytes.
+    /// Shorter than the header, or not the length the law's parameters need.
     Length {
-        /// Required length.
+        /// Required length (the header's for a short input).
         expected: usize,
         /// Length given.
         got: usize,
     },
-    /// The law selector is not one this crate knows.
-    UnknownKind {
-        /// The selector value.
-        kind: u8,
+    /// The law ID is not in this firmware's registration list.
+    UnknownLaw {
+        /// The law ID.
+        law: u8,
     },
-    /// Bits above the law's fields are not zero.
-    ReservedBitsSet,
-    /// A field holds a value the law does not accept (a zero radius or spacing, leader 0 or 127).
+    /// An option byte holds a value without meaning (or idle with options).
+    BadOption {
+        /// Its offset.
+        offset: u8,
+    },
+    /// A parameter is outside its range.
     FieldOutOfRange {
-        /// Which field.
-        field: ParamField,
+        /// Index of the parameter in the law's list.
+        param: u8,
     },
 }
 
-const KIND_IDLE: u64 = 0;
-const KIND_FORMATION: u64 = 1;
-const KIND_RENDEZVOUS: u64 = 2;
-const KIND_CIRCLE: u64 = 3;
-const KIND_GOTO: u64 = 4;
-const KIND_CAMERA_FOLLOW: u64 = 5;
-
-/// Packs fields LSB first into a 48-bit word.
-struct Packer {
-    word: u64,
-    bit: u32,
+/// The parameter ranges of law `law` (`None`: not registered; law 0 has none).
+fn law_ranges(law: u8) -> Option<&'static [Range]> {
+    if law == IDLE_LAW {
+        return Some(&[]);
+    }
+    laws::ranges(law)
 }
 
-impl Packer {
-    fn new(kind: u64) -> Self {
-        Self { word: kind, bit: 3 }
-    }
+// The byte helpers below never panic (a panic site with a formatted message would pull the
+// formatting code into the firmware); callers check the lengths first.
 
-    fn put(mut self, value: u64, width: u32, field: ParamField) -> Result<Self, EncodeError> {
-        if value >> width != 0 {
-            return Err(EncodeError::FieldOutOfRange { field });
-        }
-        self.word |= value << self.bit;
-        self.bit += width;
-        Ok(self)
-    }
-
-    fn put_signed(self, value: i64, width: u32, field: ParamField) -> Result<Self, EncodeError> {
-        let half = 1i64 << (width - 1);
-        if value < -half || value >= half {
-            return Err(EncodeError::FieldOutOfRange { field });
-        }
-        let mask = (1u64 << width) - 1;
-        // Two's complement truncated to `width` bits.
-        self.put((value as u64) & mask, width, field)
-    }
-}
-
-/// Reads fields back in the same order.
-struct Unpacker {
-    word: u64,
-    bit: u32,
-}
-
-impl Unpacker {
-    fn take(&mut self, width: u32) -> u64 {
-        let v = (self.word >> self.bit) & ((1u64 << width) - 1);
-        self.bit += width;
-        v
-    }
-
-    fn take_signed(&mut self, width: u32) -> i64 {
-        let v = self.take(width) as i64;
-        if v >= 1 << (width - 1) {
-            v - (1 << width)
-        } else {
-            v
-        }
-    }
-
-    fn finish(self) -> Result<(), DecodeError> {
-        if self.word >> self.bit != 0 {
-            Err(DecodeError::ReservedBitsSet)
-        } else {
-            Ok(())
+fn put_le(out: &mut [u8], at: usize, v: u32, len: usize) {
+    if let Some(d) = out.get_mut(at..at + len) {
+        for (d, b) in d.iter_mut().zip(v.to_le_bytes()) {
+            *d = b;
         }
     }
 }
 
-fn check(ok: bool, field: ParamField) -> Result<(), ParamField> {
-    if ok {
-        Ok(())
-    } else {
-        Err(field)
-    }
+fn get_le(b: &[u8], at: usize, len: usize) -> u32 {
+    b.get(at..at + len).map_or(0, |s| {
+        s.iter().rev().fold(0, |w, &x| (w << 8) | u32::from(x))
+    })
+}
+
+/// Bytes of the parameters with these ranges.
+fn params_len(ranges: &[Range]) -> usize {
+    ranges.iter().map(Range::wire_len).sum()
 }
 
 impl ManeuverParams {
-    /// Semantic checks shared by encode and decode.
-    fn validate(&self) -> Result<(), ParamField> {
-        match *self {
-            ManeuverParams::Idle => Ok(()),
-            ManeuverParams::Formation {
-                leader,
-                slot,
-                spacing_units,
-                ..
-            } => {
-                check((1..=126).contains(&leader), ParamField::Leader)?;
-                check(
-                    slot.is_none_or(|s| u64::from(s) < SLOT_AUTO),
-                    ParamField::Slot,
-                )?;
-                check(spacing_units >= 1, ParamField::Spacing)
-            }
-            ManeuverParams::Rendezvous { radius_units, .. }
-            | ManeuverParams::Circle { radius_units, .. } => {
-                check(radius_units >= 1, ParamField::Radius)
-            }
-            ManeuverParams::GoTo { .. } => Ok(()),
-            ManeuverParams::CameraFollow { distance_units, .. } => {
-                check(distance_units >= 1, ParamField::Distance)
+    /// No maneuver.
+    pub const IDLE: ManeuverParams = ManeuverParams {
+        law: IDLE_LAW,
+        overrides: Overrides {
+            reverse: None,
+            arrival_units: None,
+            neighbours: None,
+        },
+        values: Values::EMPTY,
+    };
+
+    /// Law `law` with `values` in its parameter order, each checked against its range.
+    pub fn new(law: u8, values: &[i32]) -> Result<Self, EncodeError> {
+        let ranges = law_ranges(law).ok_or(EncodeError::UnknownLaw { law })?;
+        if values.len() != ranges.len() {
+            return Err(EncodeError::Count {
+                expected: ranges.len() as u8,
+                got: values.len().min(255) as u8,
+            });
+        }
+        for (i, (v, r)) in values.iter().zip(ranges).enumerate() {
+            if !r.contains(i64::from(*v)) {
+                return Err(EncodeError::FieldOutOfRange { param: i as u8 });
             }
         }
+        Ok(ManeuverParams {
+            law,
+            overrides: Overrides::default(),
+            // n <= MAX_PARAMS.
+            values: Values::from_slice(values).unwrap_or_default(),
+        })
     }
 
-    /// The law selector of the wire form (the low 3 bits): 0 idle, 1 formation,
-    /// 2 rendezvous, 3 circle, 4 go-to, 5 camera follow.
-    pub const fn kind(&self) -> u8 {
-        (match self {
-            ManeuverParams::Idle => KIND_IDLE,
-            ManeuverParams::Formation { .. } => KIND_FORMATION,
-            ManeuverParams::Rendezvous { .. } => KIND_RENDEZVOUS,
-            ManeuverParams::Circle { .. } => KIND_CIRCLE,
-            ManeuverParams::GoTo { .. } => KIND_GOTO,
-            ManeuverParams::CameraFollow { .. } => KIND_CAMERA_FOLLOW,
-        }) as u8
+    /// The law ID (0: none).
+    pub fn law(&self) -> u8 {
+        self.law
     }
 
-    /// The 6-byte wire form.
-    pub fn encode(&self) -> Result<[u8; PARAMS_LEN], EncodeError> {
-        self.validate()
-            .map_err(|field| EncodeError::FieldOutOfRange { field })?;
-        let p = match *self {
-            ManeuverParams::Idle => Packer::new(KIND_IDLE),
-            ManeuverParams::Formation {
-                shape,
-                leader,
-                slot,
-                spacing_units,
-                speed_mm_s,
-            } => Packer::new(KIND_FORMATION)
-                .put(shape as u64, 1, ParamField::Slot)?
-                .put(slot.map_or(SLOT_AUTO, u64::from), 4, ParamField::Slot)?
-                .put(u64::from(leader), 7, ParamField::Leader)?
-                .put(u64::from(spacing_units), 9, ParamField::Spacing)?
-                .put(u64::from(speed_mm_s), 11, ParamField::Speed)?,
-            ManeuverParams::Rendezvous {
-                radius_units,
-                speed_mm_s,
-            } => Packer::new(KIND_RENDEZVOUS)
-                .put(u64::from(radius_units), 9, ParamField::Radius)?
-                .put(u64::from(speed_mm_s), 11, ParamField::Speed)?,
-            ManeuverParams::Circle {
-                cx,
-                cy,
-                radius_units,
-                speed_mm_s,
-            } => Packer::new(KIND_CIRCLE)
-                .put(u64::from(cx), 10, ParamField::X)?
-                .put(u64::from(cy), 10, ParamField::Y)?
-                .put(u64::from(radius_units), 9, ParamField::Radius)?
-                .put_signed(i64::from(speed_mm_s), 12, ParamField::Speed)?,
-            ManeuverParams::GoTo { x, y, speed_mm_s } => Packer::new(KIND_GOTO)
-                .put(u64::from(x), 10, ParamField::X)?
-                .put(u64::from(y), 10, ParamField::Y)?
-                .put(u64::from(speed_mm_s), 11, ParamField::Speed)?,
-            ManeuverParams::CameraFollow {
-                marker,
-                distance_units,
-                speed_mm_s,
-            } => Packer::new(KIND_CAMERA_FOLLOW)
-                .put(u64::from(marker), 8, ParamField::Marker)?
-                .put(u64::from(distance_units), 9, ParamField::Distance)?
-                .put(u64::from(speed_mm_s), 11, ParamField::Speed)?,
+    /// True for "no maneuver".
+    pub fn is_idle(&self) -> bool {
+        self.law == IDLE_LAW
+    }
+
+    /// The parameter values.
+    pub fn values(&self) -> &Values {
+        &self.values
+    }
+
+    /// The option overrides.
+    pub fn overrides(&self) -> Overrides {
+        self.overrides
+    }
+
+    /// The same with these option overrides.
+    pub fn with_overrides(self, overrides: Overrides) -> Self {
+        Self { overrides, ..self }
+    }
+
+    /// The options in force: the law's defaults with the overrides (`None` for idle).
+    pub fn options(&self) -> Option<LawOptions> {
+        laws::default_options(self.law).map(|d| self.overrides.apply(d))
+    }
+
+    /// Bytes of the wire form.
+    pub fn wire_len(&self) -> usize {
+        law_ranges(self.law).map_or(HEADER_LEN, |r| HEADER_LEN + params_len(r))
+    }
+
+    /// Writes the wire form to `out`; returns its length.
+    pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        let law = self.law;
+        let ranges = law_ranges(law).ok_or(EncodeError::UnknownLaw { law })?;
+        if self.values.len() != ranges.len() {
+            return Err(EncodeError::Count {
+                expected: ranges.len() as u8,
+                got: self.values.len() as u8,
+            });
+        }
+        let len = self.wire_len();
+        if out.len() < len {
+            return Err(EncodeError::BufferTooSmall { needed: len });
+        }
+        let o = self.overrides;
+        if law == IDLE_LAW && o != Overrides::default() {
+            return Err(EncodeError::BadOption);
+        }
+        let neighbours = match o.neighbours {
+            None => 0,
+            Some(Neighbours::All) => NEIGHBOURS_ALL,
+            Some(Neighbours::None) => NEIGHBOURS_NONE,
+            Some(Neighbours::Nearest(k)) if (1..=MAX_NEAREST).contains(&k) => k,
+            Some(Neighbours::Nearest(_)) => return Err(EncodeError::BadOption),
         };
-        let b = p.word.to_le_bytes();
-        let mut out = [0u8; PARAMS_LEN];
-        out.copy_from_slice(&b[..PARAMS_LEN]);
-        Ok(out)
+        if o.arrival_units == Some(0) {
+            return Err(EncodeError::BadOption);
+        }
+        let header = [
+            law,
+            o.reverse.map_or(0, |r| r as u8),
+            o.arrival_units.unwrap_or(0),
+            neighbours,
+        ];
+        for (d, b) in out.iter_mut().zip(header) {
+            *d = b;
+        }
+        let mut at = HEADER_LEN;
+        for (i, (v, r)) in self.values.as_slice().iter().zip(ranges).enumerate() {
+            if !r.contains(i64::from(*v)) {
+                return Err(EncodeError::FieldOutOfRange { param: i as u8 });
+            }
+            let w = r.wire_len();
+            // In range, so `v - min` fits the width.
+            put_le(out, at, v.wrapping_sub(r.min) as u32, w);
+            at += w;
+        }
+        Ok(len)
     }
 
-    /// Parse the 6-byte wire form (untrusted input: never panics).
+    /// Parses the wire form (untrusted input: never panics).
     pub fn decode(bytes: &[u8]) -> Result<Self, DecodeError> {
-        if bytes.len() != PARAMS_LEN {
+        let [law, reverse, arrival, neighbours, ref rest @ ..] = *bytes else {
             return Err(DecodeError::Length {
-                expected: PARAMS_LEN,
+                expected: HEADER_LEN,
+                got: bytes.len(),
+            });
+        };
+        let ranges = law_ranges(law).ok_or(DecodeError::UnknownLaw { law })?;
+        let need = params_len(ranges);
+        if rest.len() != need {
+            return Err(DecodeError::Length {
+                expected: HEADER_LEN + need,
                 got: bytes.len(),
             });
         }
-        let mut b = [0u8; 8];
-        b[..PARAMS_LEN].copy_from_slice(bytes);
-        let mut u = Unpacker {
-            word: u64::from_le_bytes(b),
-            bit: 3,
+        if law == IDLE_LAW && (reverse | arrival | neighbours) != 0 {
+            return Err(DecodeError::BadOption { offset: 1 });
+        }
+        let reverse = match reverse {
+            0 => None,
+            v => Some(Reverse::from_u8(v).ok_or(DecodeError::BadOption { offset: 1 })?),
         };
-        let kind = u.word & 0b111;
-        // Every `take(n)` below is at most 11 bits, so the narrowing casts are lossless.
-        let params = match kind {
-            KIND_IDLE => ManeuverParams::Idle,
-            KIND_FORMATION => {
-                let shape = if u.take(1) == 0 {
-                    Shape::Line
-                } else {
-                    Shape::Wedge
-                };
-                let slot = u.take(4);
-                let leader = u.take(7) as u8;
-                ManeuverParams::Formation {
-                    shape,
-                    leader,
-                    slot: (slot != SLOT_AUTO).then_some(slot as u8),
-                    spacing_units: u.take(9) as u16,
-                    speed_mm_s: u.take(11) as u16,
-                }
+        let neighbours = match neighbours {
+            0 => None,
+            NEIGHBOURS_ALL => Some(Neighbours::All),
+            NEIGHBOURS_NONE => Some(Neighbours::None),
+            k if k <= MAX_NEAREST => Some(Neighbours::Nearest(k)),
+            _ => return Err(DecodeError::BadOption { offset: 3 }),
+        };
+        let mut v = [0i32; MAX_PARAMS];
+        let mut at = 0;
+        for (i, (r, slot)) in ranges.iter().zip(&mut v).enumerate() {
+            let w = r.wire_len();
+            let raw = get_le(rest, at, w);
+            if raw > r.span() {
+                return Err(DecodeError::FieldOutOfRange { param: i as u8 });
             }
-            KIND_RENDEZVOUS => ManeuverParams::Rendezvous {
-                radius_units: u.take(9) as u16,
-                speed_mm_s: u.take(11) as u16,
+            *slot = r.min.wrapping_add(raw as i32);
+            at += w;
+        }
+        let n = ranges.len();
+        Ok(ManeuverParams {
+            law,
+            overrides: Overrides {
+                reverse,
+                arrival_units: (arrival != 0).then_some(arrival),
+                neighbours,
             },
-            KIND_CIRCLE => ManeuverParams::Circle {
-                cx: u.take(10) as u16,
-                cy: u.take(10) as u16,
-                radius_units: u.take(9) as u16,
-                speed_mm_s: u.take_signed(12) as i16,
-            },
-            KIND_GOTO => ManeuverParams::GoTo {
-                x: u.take(10) as u16,
-                y: u.take(10) as u16,
-                speed_mm_s: u.take(11) as u16,
-            },
-            KIND_CAMERA_FOLLOW => ManeuverParams::CameraFollow {
-                marker: u.take(8) as u8,
-                distance_units: u.take(9) as u16,
-                speed_mm_s: u.take(11) as u16,
-            },
-            other => return Err(DecodeError::UnknownKind { kind: other as u8 }),
-        };
-        u.finish()?;
-        params
-            .validate()
-            .map_err(|field| DecodeError::FieldOutOfRange { field })?;
-        Ok(params)
+            values: Values::from_slice(v.get(..n).unwrap_or(&[])).unwrap_or_default(),
+        })
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use proptest::prelude::*;
-
-    #[test]
-    fn circle_bytes() {
-        // kind 3 | cx 300 << 3 | cy 400 << 13 | r 150 << 23 | speed -200 (0xF38) << 32
-        let p = ManeuverParams::Circle {
-            cx: 300,
-            cy: 400,
-            radius_units: 150,
-            speed_mm_s: -200,
-        };
-        let word: u64 = 3 | (300 << 3) | (400 << 13) | (150 << 23) | (0xF38 << 32);
-        let expected = &word.to_le_bytes()[..6];
-        assert_eq!(p.encode().unwrap(), expected);
-        assert_eq!(p.encode().unwrap(), [0x63, 0x09, 0x32, 0x4B, 0x38, 0x0F]);
-        assert_eq!(ManeuverParams::decode(expected), Ok(p));
-    }
-
-    #[test]
-    fn formation_bytes() {
-        let p = ManeuverParams::Formation {
-            shape: Shape::Wedge,
-            leader: 1,
-            slot: None,
-            spacing_units: 60,
-            speed_mm_s: 100,
-        };
-        // kind 1 | wedge << 3 | auto slot 15 << 4 | leader 1 << 8 | 60 << 15 | 100 << 24
-        assert_eq!(p.encode().unwrap(), [0xF9, 0x01, 0x1E, 0x64, 0x00, 0x00]);
-    }
-
-    #[test]
-    fn camera_follow_bytes() {
-        let p = ManeuverParams::CameraFollow {
-            marker: 2,
-            distance_units: 80,
-            speed_mm_s: 150,
-        };
-        // kind 5 | marker 2 << 3 | distance 80 << 11 | speed 150 << 20
-        let word: u64 = 5 | (2 << 3) | (80 << 11) | (150 << 20);
-        assert_eq!(p.encode().unwrap(), &word.to_le_bytes()[..6]);
-        assert_eq!(p.encode().unwrap(), [0x15, 0x80, 0x62, 0x09, 0x00, 0x00]);
-        assert_eq!(ManeuverParams::decode(&word.to_le_bytes()[..6]), Ok(p));
-        assert_eq!(p.kind(), 5);
-        assert_eq!(
-            ManeuverParams::CameraFollow {
-                marker: 0,
-                distance_units: 0,
-                speed_mm_s: 0
-            }
-            .encode(),
-            Err(EncodeError::FieldOutOfRange {
-                field: ParamField::Distance
-            })
-        );
-    }
-
-    #[test]
-    fn idle_is_all_zero() {
-        assert_eq!(ManeuverParams::Idle.encode().unwrap(), [0; 6]);
-        assert_eq!(ManeuverParams::decode(&[0; 6]), Ok(ManeuverParams::Idle));
-    }
-
-    #[test]
-    fn bad_inputs_are_typed_errors() {
-        assert_eq!(
-            ManeuverParams::decode(&[0; 5]),
-            Err(DecodeError::Length {
-                expected: 6,
-                got: 5
-            })
-        );
-        assert_eq!(
-            ManeuverParams::decode(&[6, 0, 0, 0, 0, 0]),
-            Err(DecodeError::UnknownKind { kind: 6 })
-        );
-        assert_eq!(
-            ManeuverParams::decode(&[0, 0, 0, 0, 0, 0x80]),
-            Err(DecodeError::ReservedBitsSet)
-        );
-        // Rendezvous with radius 0.
-        assert_eq!(
-            ManeuverParams::decode(&[2, 0, 0, 0, 0, 0]),
-            Err(DecodeError::FieldOutOfRange {
-                field: ParamField::Radius
-            })
-        );
-        assert_eq!(
-            ManeuverParams::GoTo {
-                x: 1024,
-                y: 0,
-                speed_mm_s: 0
-            }
-            .encode(),
-            Err(EncodeError::FieldOutOfRange {
-                field: ParamField::X
-            })
-        );
-        assert_eq!(
-            ManeuverParams::Circle {
-                cx: 0,
-                cy: 0,
-                radius_units: 10,
-                speed_mm_s: 2048
-            }
-            .encode(),
-            Err(EncodeError::FieldOutOfRange {
-                field: ParamField::Speed
-            })
-        );
-    }
-
-    fn any_params() -> impl Strategy<Value = ManeuverParams> {
-        prop_oneof![
-            Just(ManeuverParams::Idle),
-            (
-                any::<bool>(),
-                1u8..=126,
-                proptest::option::of(0u8..15),
-                1u16..512,
-                0u16..2048
-            )
-                .prop_map(|(w, leader, slot, spacing_units, speed_mm_s)| {
-                    ManeuverParams::Formation {
-                        shape: if w { Shape::Wedge } else { Shape::Line },
-                        leader,
-                        slot,
-                        spacing_units,
-                        speed_mm_s,
-                    }
-                }),
-            (1u16..512, 0u16..2048).prop_map(|(radius_units, speed_mm_s)| {
-                ManeuverParams::Rendezvous {
-                    radius_units,
-                    speed_mm_s,
-                }
-            }),
-            (0u16..1024, 0u16..1024, 1u16..512, -2048i16..2048).prop_map(
-                |(cx, cy, radius_units, speed_mm_s)| ManeuverParams::Circle {
-                    cx,
-                    cy,
-                    radius_units,
-                    speed_mm_s
-                }
-            ),
-            (0u16..1024, 0u16..1024, 0u16..2048)
-                .prop_map(|(x, y, speed_mm_s)| ManeuverParams::GoTo { x, y, speed_mm_s }),
-            (any::<u8>(), 1u16..512, 0u16..2048).prop_map(
-                |(marker, distance_units, speed_mm_s)| {
-                    ManeuverParams::CameraFollow {
-                        marker,
-                        distance_units,
-                        speed_mm_s,
-                    }
-                }
-            ),
-        ]
-    }
-
-    proptest! {
-        #[test]
-        fn encode_decode_round_trip(p in any_params()) {
-            let bytes = p.encode().unwrap();
-            prop_assert_eq!(ManeuverParams::decode(&bytes), Ok(p));
-        }
-
-        #[test]
-        fn decode_is_canonical(bytes in proptest::array::uniform6(any::<u8>())) {
-            if let Ok(p) = ManeuverParams::decode(&bytes) {
-                prop_assert_eq!(p.encode(), Ok(bytes));
-            }
-        }
-
-        #[test]
-        fn decode_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..10)) {
-            let _ = ManeuverParams::decode(&bytes);
-        }
-    }
-}
+mod tests;

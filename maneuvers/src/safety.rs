@@ -97,6 +97,17 @@ impl SafetyConfig {
         )
     }
 
+    /// Distance of the goal area from each wall (see [`SafetyConfig::clamp_goal`]), tracking
+    /// units, rounded.
+    pub fn goal_margin_units(&self) -> u16 {
+        let m = self.body_radius_units
+            + self.wall_margin_units
+            + self.body_offset_units
+            + self.wall_influence_units / 3.0;
+        // A few dozen units: exact.
+        crate::fmath::round(m) as u16
+    }
+
     /// Clamp a rear-axle goal so that the body keeps out of the walls whatever the heading,
     /// with a third of the wall band to spare so that the goal can be reached.
     pub fn clamp_goal(&self, p: Vec2) -> Vec2 {

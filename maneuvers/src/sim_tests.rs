@@ -3,10 +3,10 @@
 
 use core::f32::consts::TAU;
 
-use crate::formation::Shape;
 use crate::geom::Vec2;
+use crate::laws::formation::Shape;
 use crate::sim::{Radio, World};
-use crate::{ControllerConfig, ManeuverParams, Phase};
+use crate::{Circle, ControllerConfig, Formation, GoTo, Phase, Rendezvous};
 
 const SAFETY: f32 = 60.0;
 const LOSSY: Radio = Radio {
@@ -32,10 +32,7 @@ fn check_safe(w: &World, what: &str) {
 }
 
 fn rendezvous(radio: Radio, seed: u64) -> f32 {
-    let p = ManeuverParams::Rendezvous {
-        radius_units: 60,
-        speed_mm_s: 250,
-    };
+    let p = Rendezvous::params(60, 250).unwrap();
     let mut w = World::new(radio, seed);
     w.add(1, 80.0, 100.0, 0.0, p);
     w.add(2, 520.0, 160.0, 90.0, p);
@@ -51,7 +48,7 @@ fn rendezvous(radio: Radio, seed: u64) -> f32 {
     check_safe(&w, "rendezvous");
     let mean = w.cars.iter().fold(Vec2::ZERO, |s, c| s + c.pos) * (1.0 / 3.0);
     for c in &w.cars {
-        assert!((c.pos - mean).norm() < 60.0 + crate::rendezvous::BLOCK_UNITS + 5.0);
+        assert!((c.pos - mean).norm() < 60.0 + crate::laws::rendezvous::BLOCK_UNITS + 5.0);
     }
     t
 }
@@ -98,13 +95,7 @@ fn slot_error(w: &World, shape: Shape, spacing: f32) -> f32 {
 /// Line or wedge of four behind a leader driving up the arena; returns the largest slot error
 /// (tracking units) over the steady part.
 fn formation(shape: Shape, radio: Radio, seed: u64) -> f32 {
-    let p = ManeuverParams::Formation {
-        shape,
-        leader: 1,
-        slot: None,
-        spacing_units: 100,
-        speed_mm_s: 80,
-    };
+    let p = Formation::params(shape, 1, None, 100, 80).unwrap();
     let mut w = World::new(radio, seed);
     w.add(1, 300.0, 340.0, 90.0, p);
     w.add(2, 150.0, 120.0, 0.0, p);
@@ -121,7 +112,7 @@ fn formation(shape: Shape, radio: Radio, seed: u64) -> f32 {
         w.all_converged() && w.cars.iter().all(|c| c.speed.abs() < 1.0)
     });
     assert!(t.is_some(), "formation settles after the leader stops");
-    assert!(slot_error(&w, shape, 100.0) < crate::formation::TOLERANCE_UNITS + 2.0);
+    assert!(slot_error(&w, shape, 100.0) < crate::laws::formation::TOLERANCE_UNITS + 2.0);
     check_safe(&w, "formation at rest");
     worst
 }
@@ -153,12 +144,7 @@ fn formations_with_loss_and_delay() {
 /// error afterwards in tracking units along the circle).
 fn circle(radio: Radio, seed: u64) -> (f32, f32) {
     let (cx, cy, r) = (300.0, 400.0, 150.0);
-    let p = ManeuverParams::Circle {
-        cx: 300,
-        cy: 400,
-        radius_units: 150,
-        speed_mm_s: 120,
-    };
+    let p = Circle::params(300, 400, 150, 120).unwrap();
     let mut w = World::new(radio, seed);
     w.add(1, 100.0, 100.0, 90.0, p);
     w.add(2, 200.0, 150.0, 0.0, p);
@@ -209,11 +195,7 @@ fn circle_with_loss_and_delay() {
 
 #[test]
 fn goto_beyond_wall_stops_inside() {
-    let p = ManeuverParams::GoTo {
-        x: 700,
-        y: 900,
-        speed_mm_s: 400,
-    };
+    let p = GoTo::params(700, 900, 400).unwrap();
     let mut w = World::new(Radio::PERFECT, 1);
     w.add(1, 300.0, 400.0, 30.0, p);
     // Head straight at the corner; the goal is clamped and the wall gate holds.
@@ -222,18 +204,14 @@ fn goto_beyond_wall_stops_inside() {
     assert!(w.car(1).speed.abs() < 1.0);
     // Arrived at the goal moved inside the walls, (542, 742).
     assert!(w.all_converged());
-    assert!((w.car(1).pos - Vec2::new(542.0, 742.0)).norm() < 3.0 * crate::goto::ARRIVAL_UNITS);
+    assert!((w.car(1).pos - Vec2::new(542.0, 742.0)).norm() < 3.0 * 8.0);
 }
 
 #[test]
 fn cars_driving_at_each_other_pass_safely() {
     // Two cars swap places head-on, with lossy radio; a third crosses.
     let mut w = World::new(LOSSY, 5);
-    let go = |x, y| ManeuverParams::GoTo {
-        x,
-        y,
-        speed_mm_s: 300,
-    };
+    let go = |x, y| GoTo::params(x, y, 300).unwrap();
     w.add(1, 300.0, 150.0, 90.0, go(300, 650));
     w.add(2, 300.0, 650.0, 270.0, go(300, 150));
     w.add(3, 100.0, 400.0, 0.0, go(500, 400));
@@ -245,13 +223,7 @@ fn cars_driving_at_each_other_pass_safely() {
 
 #[test]
 fn follower_stops_when_leader_goes_silent() {
-    let p = ManeuverParams::Formation {
-        shape: Shape::Line,
-        leader: 1,
-        slot: None,
-        spacing_units: 100,
-        speed_mm_s: 100,
-    };
+    let p = Formation::params(Shape::Line, 1, None, 100, 100).unwrap();
     let mut w = World::new(Radio::PERFECT, 1);
     w.add(1, 300.0, 300.0, 90.0, p);
     w.add(2, 300.0, 100.0, 90.0, p);
@@ -274,11 +246,7 @@ fn without_avoidance_cars_collide() {
     cfg.safety.guard_units = 0.0;
     cfg.safety.influence_units = 1e-3;
     w.set_config(cfg);
-    let go = |x, y| ManeuverParams::GoTo {
-        x,
-        y,
-        speed_mm_s: 300,
-    };
+    let go = |x, y| GoTo::params(x, y, 300).unwrap();
     w.add(1, 300.0, 150.0, 90.0, go(300, 650));
     w.add(2, 300.0, 650.0, 270.0, go(300, 150));
     w.run_for(5.0, |_| {});
@@ -289,13 +257,7 @@ fn without_avoidance_cars_collide() {
 /// error (true poses) during the turn, and once the leader stops.
 #[test]
 fn wedge_follows_a_turn() {
-    let p = ManeuverParams::Formation {
-        shape: Shape::Wedge,
-        leader: 1,
-        slot: None,
-        spacing_units: 100,
-        speed_mm_s: 80,
-    };
+    let p = Formation::params(Shape::Wedge, 1, None, 100, 80).unwrap();
     let mut w = World::new(LOSSY, 11);
     w.add(1, 300.0, 330.0, 90.0, p);
     w.add(2, 230.0, 260.0, 90.0, p);
@@ -325,7 +287,7 @@ fn wedge_follows_a_turn() {
         w.t
     );
     assert!(worst < 120.0);
-    assert!(at_rest < crate::formation::TOLERANCE_UNITS * 1.5 + 2.0);
+    assert!(at_rest < crate::laws::formation::TOLERANCE_UNITS * 1.5 + 2.0);
 }
 
 /// A seeded random start: rendezvous of 3 (even trials) or circle of 4 (odd trials) cars at
@@ -339,23 +301,9 @@ fn random_world(trial: u64) -> World {
         lo + (hi - lo) * ((rng >> 40) as f32 / (1u64 << 24) as f32)
     };
     let (params, cars) = if trial.is_multiple_of(2) {
-        (
-            ManeuverParams::Rendezvous {
-                radius_units: 60,
-                speed_mm_s: 300,
-            },
-            3,
-        )
+        (Rendezvous::params(60, 300).unwrap(), 3)
     } else {
-        (
-            ManeuverParams::Circle {
-                cx: 300,
-                cy: 400,
-                radius_units: 160,
-                speed_mm_s: -100,
-            },
-            4,
-        )
+        (Circle::params(300, 400, 160, -100).unwrap(), 4)
     };
     let mut w = World::new(LOSSY, trial + 100);
     let mut placed: Vec<Vec2> = Vec::new();
@@ -388,4 +336,45 @@ fn random_starts_are_safe() {
     }
     eprintln!("random starts: slowest convergence {worst_t:.2} s");
     assert!(worst_t < 25.0);
+}
+
+/// A go-to point straight behind the car: with reverse allowed it backs all the way, with
+/// `turn` it backs up only to turn round, with `never` it turns round forward; all arrive.
+#[test]
+fn reverse_modes_turn_round() {
+    use crate::{Overrides, Reverse};
+    for (mode, most_reverse_s) in [
+        (Reverse::Allowed, 10.0),
+        (Reverse::Turn, 2.0),
+        (Reverse::Never, 0.0),
+    ] {
+        let p = GoTo::params(300, 200, 200)
+            .unwrap()
+            .with_overrides(Overrides {
+                reverse: Some(mode),
+                ..Overrides::default()
+            });
+        let mut w = World::new(Radio::PERFECT, 1);
+        w.add(1, 300.0, 500.0, 90.0, p);
+        let mut reversing = 0.0;
+        let t = w.run_until(30.0, |w| w.all_converged() && w.car(1).speed.abs() < 1.0);
+        let t = t.unwrap_or_else(|| panic!("{mode:?}: did not arrive"));
+        // Replay to measure the time spent backing up.
+        let mut w2 = World::new(Radio::PERFECT, 1);
+        w2.add(1, 300.0, 500.0, 90.0, p);
+        w2.run_for(t, |w| {
+            if w.car(1).speed < -1.0 {
+                reversing += 1.0 / crate::sim::CONTROL_HZ;
+            }
+        });
+        eprintln!("{mode:?}: arrived at {t:.2} s, {reversing:.2} s in reverse");
+        check_safe(&w, mode.name());
+        if mode == Reverse::Allowed {
+            assert!(reversing > 1.0);
+        }
+        assert!(
+            reversing <= most_reverse_s,
+            "{mode:?}: {reversing} s in reverse"
+        );
+    }
 }

@@ -71,9 +71,21 @@ pub fn echo_test_elf() -> Result<PathBuf, Error> {
     )
 }
 
+/// The ELF of program `bin` (a firmware binary of `ubc-app`, e.g. one made by `cargo xtask
+/// new-program`) for `board`: the last line printed by `cargo xtask fw --board BOARD --bin
+/// BIN`, run from the workspace root (cargo rebuilds only what changed).
+pub fn program_elf(board: &str, bin: &str) -> Result<PathBuf, Error> {
+    elf_from("", &["fw", "--board", board, "--bin", bin])
+}
+
 fn elf_from(env_var: &str, xtask_args: &[&str]) -> Result<PathBuf, Error> {
     let root = workspace_root();
-    let path = match env::var_os(env_var) {
+    let preset = if env_var.is_empty() {
+        None
+    } else {
+        env::var_os(env_var)
+    };
+    let path = match preset {
         Some(path) => PathBuf::from(path),
         None => {
             let command = format!("cargo xtask {}", xtask_args.join(" "));

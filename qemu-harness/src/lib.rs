@@ -32,8 +32,8 @@ mod uart;
 pub use config::{QemuBuilder, QemuConfig, LBC_CHARDEV, RADIO_CHARDEV};
 pub use error::Error;
 pub use firmware::{
-    echo_test_elf, find_qemu, firmware_elf, skip_qemu_tests, softcore_elf, workspace_root,
-    FW_ECHO_ELF_ENV, FW_ELF_ENV, QEMU_ENV, SKIP_ENV, SOFTCORE_ELF_ENV,
+    echo_test_elf, find_qemu, firmware_elf, program_elf, skip_qemu_tests, softcore_elf,
+    workspace_root, FW_ECHO_ELF_ENV, FW_ELF_ENV, QEMU_ENV, SKIP_ENV, SOFTCORE_ELF_ENV,
 };
 pub use log::{Level, LineDecoder, Log, LogFormat, LogLine, DEFAULT_LOG_CAPACITY};
 pub use qemu::Qemu;

@@ -6,7 +6,7 @@
 use std::time::{Duration, Instant};
 
 use lbc_link::Command;
-use ubc_app::program::console::{flags, ManeuverParams, Refusal, Reply, Request};
+use ubc_app::program::console::{flags, Refusal, Reply, Request};
 
 mod program_common;
 
@@ -14,7 +14,7 @@ mod program_common;
 const DEADLINE: Duration = Duration::from_secs(120);
 /// The go-to target, tracking units; the emulated car starts at (300, 400) facing +Y.
 const TARGET: (u16, u16) = (400, 560);
-/// `ManeuverParams::kind` of a go-to.
+/// The go-to law's ID in the registration list.
 const KIND_GOTO: u8 = 4;
 /// `maneuvers::Phase::Hold`.
 const PHASE_HOLD: u8 = 3;
@@ -42,16 +42,12 @@ fn group_goto_arrives_and_stops() {
             &Request::GroupWaypoint { x: 300, y: 300 },
             Duration::from_secs(10)
         ),
-        Reply::Refused(Refusal::NoFormation)
+        Reply::Refused(Refusal::NoGroup)
     );
 
     let lbc = rig.lbc.as_ref().expect("lbc running");
     let before = moves(&lbc.commands());
-    let params = ManeuverParams::GoTo {
-        x: TARGET.0,
-        y: TARGET.1,
-        speed_mm_s: 200,
-    };
+    let params = maneuvers::GoTo::params(TARGET.0, TARGET.1, 200).unwrap();
     let t0 = Instant::now();
     assert_eq!(
         g.request(&Request::GroupStart(params), Duration::from_secs(10)),

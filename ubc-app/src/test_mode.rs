@@ -11,8 +11,8 @@
 //! - [`PANIC_MAGIC`] arriving on either UART makes it panic (after echoing what came first).
 //! - With nothing to do it sleeps in WFI until a byte or the next tick.
 
-use crate::board::{Board, Clock, Uart};
 use crc::{Crc, CRC_32_ISO_HDLC};
+use ubc_app::firmware::board::{Board, Clock, Uart};
 use ubc_app::magic::SequenceDetector;
 use ubc_hal::cpu;
 

@@ -2,7 +2,9 @@
 //! LBC are rate-limited (except a change to STOP), unchanged commands are refreshed, and every
 //! command is within the LBC's ranges.
 
-use maneuvers::{CarPose, Command as Motion, ManeuverParams, Shape};
+use maneuvers::{
+    CarPose, Circle, Command as Motion, Formation, GoTo, ManeuverParams, Rendezvous, Shape,
+};
 use proptest::prelude::*;
 use radio_mac::NeighbourTable;
 use ubc_app::program::group::{lbc_command, Group, MIN_INTERVAL_US, REFRESH_US};
@@ -11,24 +13,15 @@ const NO_RADIO: Option<&NeighbourTable<4>> = None;
 
 fn any_params() -> impl Strategy<Value = ManeuverParams> {
     prop_oneof![
-        (0u16..640, 0u16..960, 1u16..800).prop_map(|(x, y, speed_mm_s)| ManeuverParams::GoTo {
-            x,
-            y,
-            speed_mm_s
-        }),
+        (0u16..640, 0u16..960, 1u16..800)
+            .prop_map(|(x, y, speed_mm_s)| GoTo::params(x, y, speed_mm_s).unwrap()),
         (50u16..550, 50u16..750, 60u16..300, -400i16..400).prop_map(
-            |(cx, cy, radius_units, speed_mm_s)| ManeuverParams::Circle {
-                cx,
-                cy,
-                radius_units,
-                speed_mm_s
+            |(cx, cy, radius_units, speed_mm_s)| {
+                Circle::params(cx, cy, radius_units, speed_mm_s).unwrap()
             }
         ),
         (1u16..200, 1u16..600).prop_map(|(radius_units, speed_mm_s)| {
-            ManeuverParams::Rendezvous {
-                radius_units,
-                speed_mm_s,
-            }
+            Rendezvous::params(radius_units, speed_mm_s).unwrap()
         }),
     ]
 }
@@ -38,13 +31,14 @@ fn any_start() -> impl Strategy<Value = (ManeuverParams, Option<(u16, u16)>)> {
         any_params().prop_map(|p| (p, None)),
         (any::<bool>(), 0u16..640, 0u16..960, 1u16..600).prop_map(|(w, x, y, speed_mm_s)| {
             (
-                ManeuverParams::Formation {
-                    shape: if w { Shape::Wedge } else { Shape::Line },
-                    leader: 1,
-                    slot: None,
-                    spacing_units: 100,
+                Formation::params(
+                    if w { Shape::Wedge } else { Shape::Line },
+                    1,
+                    None,
+                    100,
                     speed_mm_s,
-                },
+                )
+                .unwrap(),
                 Some((x, y)),
             )
         }),

@@ -2,8 +2,7 @@
 //! station on a direct radio pipe: bring-up, the console, MOVE_XY, recovery, corrupt bytes
 //! and the user-link watchdog.
 
-use std::cell::Cell;
-use std::collections::VecDeque;
+mod sim;
 
 use lbc_emu::{Lbc, LbcConfig};
 use lbc_link::{
@@ -11,271 +10,11 @@ use lbc_link::{
     ParamValue, Position, Reply as LbcReply, SteerVelocity, SteeringAngle, UserRegister, Velocity,
 };
 use radio_mac::{
-    Address, CarConfig, CarId, CarMac, CarState, Event, GroundConfig, GroundStation, Key,
-    RequestHandle, Role,
+    Address, CarConfig, CarId, CarMac, CarState, Event, GroundConfig, GroundStation, Key, Role,
 };
-use ubc_app::program::console::{
-    LbcOutcome, ManeuverParams, Notice, Point, Points, Refusal, Reply, Request, Tag,
-};
-use ubc_app::program::{BytePort, Clock, Config, LogEvent, LogSink, Phase, Program, DEFAULT_KEY};
-
-const CAR: u8 = 7;
-
-struct SimClock(Cell<u64>);
-
-impl Clock for SimClock {
-    fn now_us(&self) -> u64 {
-        self.0.get()
-    }
-}
-
-#[derive(Default)]
-struct Pipe {
-    rx: VecDeque<u8>,
-    tx: Vec<u8>,
-}
-
-impl BytePort for Pipe {
-    fn read(&mut self, buf: &mut [u8]) -> usize {
-        let n = buf.len().min(self.rx.len());
-        for b in buf.iter_mut().take(n) {
-            *b = self.rx.pop_front().unwrap_or(0);
-        }
-        n
-    }
-
-    fn write(&mut self, bytes: &[u8]) -> usize {
-        self.tx.extend_from_slice(bytes);
-        bytes.len()
-    }
-}
-
-#[derive(Default)]
-struct Log(Vec<(u64, LogEvent)>);
-
-impl LogSink for Log {
-    fn log(&mut self, now_us: u64, event: LogEvent) {
-        self.0.push((now_us, event));
-    }
-}
-
-struct Sim {
-    now: u64,
-    prog: Program,
-    lbc: Lbc,
-    ground: GroundStation,
-    lbc_port: Pipe,
-    radio_port: Pipe,
-    log: Log,
-    lbc_connected: bool,
-    ground_on: bool,
-    notices: Vec<Notice>,
-    replies: Vec<(RequestHandle, u8, Vec<u8>)>,
-    failed: Vec<RequestHandle>,
-    /// One byte in `n` on every link direction is corrupted (0: none).
-    noise_every: u32,
-    seed: u32,
-    /// Another car on the radio, broadcasting a fixed state (heard by the program only).
-    other: Option<CarMac>,
-    /// Every byte the ground station sent (what a listener on the channel records).
-    tape: Vec<u8>,
-}
-
-impl Sim {
-    fn new() -> Self {
-        Self::with(Config::default())
-    }
-
-    fn with(cfg: Config) -> Self {
-        Self::with_lbc(
-            cfg,
-            Lbc::with_memory_eeprom(LbcConfig::default(), CAR),
-            DEFAULT_KEY,
-        )
-    }
-
-    fn with_lbc(cfg: Config, lbc: Lbc, ground_key: [u8; 16]) -> Self {
-        Sim {
-            now: 0,
-            prog: Program::new(cfg),
-            lbc,
-            ground: GroundStation::new(GroundConfig::new(Key::new(ground_key), 1)),
-            lbc_port: Pipe::default(),
-            radio_port: Pipe::default(),
-            log: Log::default(),
-            lbc_connected: true,
-            ground_on: true,
-            notices: Vec::new(),
-            replies: Vec::new(),
-            failed: Vec::new(),
-            noise_every: 0,
-            seed: 0x1234_5678,
-            other: None,
-            tape: Vec::new(),
-        }
-    }
-
-    fn corrupt(&mut self, bytes: &mut [u8]) {
-        if self.noise_every == 0 {
-            return;
-        }
-        for b in bytes {
-            if u32::from(self.rand()) * 256 + u32::from(self.rand()) < 65_536 / self.noise_every {
-                *b ^= self.rand() | 1;
-            }
-        }
-    }
-
-    fn rand(&mut self) -> u8 {
-        self.seed ^= self.seed << 13;
-        self.seed ^= self.seed >> 17;
-        self.seed ^= self.seed << 5;
-        (self.seed >> 8) as u8
-    }
-
-    /// One simulated millisecond.
-    fn step(&mut self) {
-        self.now += 1_000;
-        let now = self.now;
-        let mut to_lbc: Vec<u8> = self.lbc_port.tx.drain(..).collect();
-        self.corrupt(&mut to_lbc);
-        if self.lbc_connected {
-            self.lbc.push_rx(now, &to_lbc);
-        }
-        self.lbc.step_until(now);
-        let mut from_lbc = Vec::new();
-        self.lbc.drain_tx(now, &mut from_lbc);
-        self.corrupt(&mut from_lbc);
-        if self.lbc_connected {
-            self.lbc_port.rx.extend(from_lbc);
-        }
-        let mut to_ground: Vec<u8> = self.radio_port.tx.drain(..).collect();
-        self.corrupt(&mut to_ground);
-        if self.ground_on {
-            self.ground.push_rx(now, &to_ground);
-            self.ground.poll(now);
-            while let Some(ev) = self.ground.next_event() {
-                match ev {
-                    Event::Request(inc) if inc.tag == Tag::Notice as u8 => {
-                        if let Ok(n) = Notice::decode(&inc.payload) {
-                            self.notices.push(n);
-                        }
-                        let _ = self.ground.reply(inc.id, inc.tag, &[]);
-                    }
-                    Event::Reply {
-                        handle,
-                        tag,
-                        payload,
-                        ..
-                    } => self.replies.push((handle, tag, payload.to_vec())),
-                    Event::Failed { handle, .. } => self.failed.push(handle),
-                    _ => {}
-                }
-            }
-            let mut buf = [0u8; 256];
-            loop {
-                let n = self.ground.transmit(&mut buf);
-                if n == 0 {
-                    break;
-                }
-                let mut bytes = buf[..n].to_vec();
-                self.tape.extend_from_slice(&bytes);
-                self.corrupt(&mut bytes);
-                self.radio_port.rx.extend(bytes);
-            }
-        }
-        if let Some(o) = self.other.as_mut() {
-            o.poll(now);
-            let mut buf = [0u8; 256];
-            loop {
-                let n = o.transmit(&mut buf);
-                if n == 0 {
-                    break;
-                }
-                self.radio_port.rx.extend(&buf[..n]);
-            }
-        }
-        let clock = SimClock(Cell::new(now));
-        self.prog.poll(
-            &clock,
-            &mut self.lbc_port,
-            &mut self.radio_port,
-            &mut self.log,
-        );
-    }
-
-    fn run_ms(&mut self, ms: u64) {
-        for _ in 0..ms {
-            self.step();
-        }
-    }
-
-    fn run_until(&mut self, max_ms: u64, done: impl Fn(&Sim) -> bool) -> bool {
-        for _ in 0..max_ms {
-            if done(self) {
-                return true;
-            }
-            self.step();
-        }
-        done(self)
-    }
-
-    fn bring_up(&mut self) {
-        assert!(
-            self.run_until(2_000, |s| s.prog.phase() == Phase::Running),
-            "no bring-up: {:?}",
-            self.log.0
-        );
-    }
-
-    /// Sends a console request from the ground station and waits for the car's reply.
-    fn request(&mut self, req: &Request) -> Reply {
-        let mut buf = [0u8; 32];
-        let n = req.encode(&mut buf).expect("encode");
-        let tag = req.tag() as u8;
-        self.request_raw(tag, &buf[..n])
-    }
-
-    fn request_raw(&mut self, tag: u8, payload: &[u8]) -> Reply {
-        let dst = Address::Car(CarId::new(CAR).unwrap());
-        let h = self
-            .ground
-            .command(self.now, dst, tag, payload)
-            .expect("ground command");
-        let ok = self.run_until(5_000, |s| {
-            s.replies.iter().any(|r| r.0 == h) || s.failed.contains(&h)
-        });
-        assert!(ok, "no answer to tag {tag:#x}");
-        assert!(
-            !self.failed.contains(&h),
-            "request {tag:#x} failed on the radio: car {:?}, ground {:?}, log {:?}",
-            self.prog.radio_stats(),
-            self.ground.stats(),
-            &self.log.0[self.log.0.len().saturating_sub(10)..]
-        );
-        let (_, rtag, payload) = self.replies.iter().find(|r| r.0 == h).unwrap().clone();
-        assert_eq!(rtag, tag);
-        Reply::decode(rtag, &payload).expect("reply decodes")
-    }
-
-    fn lbc(&mut self, cmd: Command) -> LbcOutcome {
-        match self.request(&Request::Lbc(cmd)) {
-            Reply::Lbc(o) => o,
-            other => panic!("{cmd:?}: {other:?}"),
-        }
-    }
-
-    fn status(&mut self) -> ubc_app::program::console::Status {
-        match self.request(&Request::Status) {
-            Reply::Status(s) => s,
-            other => panic!("{other:?}"),
-        }
-    }
-
-    fn logged(&self, f: impl Fn(&LogEvent) -> bool) -> usize {
-        self.log.0.iter().filter(|(_, e)| f(e)).count()
-    }
-}
+use sim::*;
+use ubc_app::program::console::{LbcOutcome, Notice, Point, Points, Refusal, Reply, Request, Tag};
+use ubc_app::program::{Config, LogEvent, Phase, Program, DEFAULT_KEY};
 
 #[test]
 fn bring_up_completes_and_state_is_broadcast() {
@@ -672,17 +411,13 @@ fn true_pos(s: &Sim) -> (f64, f64) {
 fn group_goto_drives_there_and_reports_it() {
     let mut s = Sim::new();
     s.bring_up();
-    // A waypoint needs a running formation.
+    // A waypoint needs a running group maneuver.
     assert_eq!(
         s.request(&Request::GroupWaypoint { x: 10, y: 10 }),
-        Reply::Refused(Refusal::NoFormation)
+        Reply::Refused(Refusal::NoGroup)
     );
     let stats_before = s.lbc.stats().commands;
-    let params = ManeuverParams::GoTo {
-        x: 400,
-        y: 560,
-        speed_mm_s: 200,
-    };
+    let params = maneuvers::GoTo::params(400, 560, 200).unwrap();
     assert_eq!(s.request(&Request::GroupStart(params)), Reply::GroupStarted);
     assert!(s.prog.group().active());
     let t0 = s.now;
@@ -734,11 +469,7 @@ fn group_maneuver_avoids_a_neighbour_heard_on_the_radio() {
     s.other = Some(other);
     s.bring_up();
     s.run_ms(500);
-    let params = ManeuverParams::GoTo {
-        x: 300,
-        y: 640,
-        speed_mm_s: 200,
-    };
+    let params = maneuvers::GoTo::params(300, 640, 200).unwrap();
     assert_eq!(s.request(&Request::GroupStart(params)), Reply::GroupStarted);
     let mut closest = f64::MAX;
     let mut avoided = false;
@@ -760,11 +491,7 @@ fn group_maneuver_avoids_a_neighbour_heard_on_the_radio() {
 fn group_maneuver_stops_when_the_user_link_or_the_lbc_is_lost() {
     let mut s = Sim::new();
     s.bring_up();
-    let far = ManeuverParams::GoTo {
-        x: 300,
-        y: 750,
-        speed_mm_s: 250,
-    };
+    let far = maneuvers::GoTo::params(300, 750, 250).unwrap();
     assert_eq!(s.request(&Request::GroupStart(far)), Reply::GroupStarted);
     s.run_ms(800);
     assert!(s.lbc.velocity_estimate_mm_s() > 100.0);
@@ -800,22 +527,47 @@ fn group_maneuver_stops_when_the_user_link_or_the_lbc_is_lost() {
 }
 
 #[test]
+fn group_start_of_an_unknown_law_or_an_old_layout_is_refused() {
+    let mut s = Sim::new();
+    s.bring_up();
+    // Version 2, law 200 (not in the registration list), no options, no parameters.
+    assert_eq!(
+        s.request_raw(Tag::GroupStart as u8, &[2, 200, 0, 0, 0]),
+        Reply::Refused(Refusal::UnknownLaw)
+    );
+    // The version-1 layout (3-bit selector, 6 packed bytes): go-to (300, 600) at 200 mm/s.
+    assert_eq!(
+        s.request_raw(
+            Tag::GroupStart as u8,
+            &[1, 0x64, 0x09, 0x4B, 0x64, 0x00, 0x00]
+        ),
+        Reply::Refused(Refusal::UnsupportedVersion)
+    );
+    // A known law with a parameter out of range (go-to x = 1024).
+    assert_eq!(
+        s.request_raw(
+            Tag::GroupStart as u8,
+            &[2, 4, 0, 0, 0, 0x00, 0x04, 0, 0, 0, 0]
+        ),
+        Reply::Refused(Refusal::BadArgument)
+    );
+    assert!(!s.prog.group().active());
+}
+
+#[test]
 fn group_start_broadcast_reaches_the_car() {
     let mut s = Sim::new();
     s.bring_up();
     // Heard once, so that the user link is up.
     s.status();
-    let params = ManeuverParams::Rendezvous {
-        radius_units: 40,
-        speed_mm_s: 200,
-    };
+    let params = maneuvers::Rendezvous::params(40, 200).unwrap();
     let mut buf = [0u8; 32];
     let n = Request::GroupStart(params).encode(&mut buf).unwrap();
     s.ground
         .command(s.now, Address::Broadcast, Tag::GroupStart as u8, &buf[..n])
         .expect("broadcast");
     assert!(s.run_until(1_000, |s| s.prog.group().active()));
-    assert_eq!(s.prog.group().params(), params);
+    assert_eq!(s.prog.group().law_id(), params.law());
     // Alone, the car is at its own rendezvous point.
     s.run_ms(200);
     let st = s.status();

@@ -21,7 +21,7 @@ use ground::{Ground, GroundPeer};
 use lbc_emu::{Lbc, LbcConfig};
 use std::cell::RefCell;
 use std::rc::Rc;
-use ubc_app::program::console::{ManeuverParams, Reply, Request};
+use ubc_app::program::console::{Reply, Request};
 use verilator_tb::cosim::LbcCosim;
 use verilator_tb::isa::{self, csr, reg::*};
 use verilator_tb::lockstep::{Lockstep, Stimulus};
@@ -459,11 +459,7 @@ fn firmware_on_the_model_matches_the_rtl() {
         other => panic!("status: {other:?}"),
     };
     assert_eq!(status.car_id, CAR);
-    let go = Request::GroupStart(ManeuverParams::GoTo {
-        x: 300,
-        y: 600,
-        speed_mm_s: 200,
-    });
+    let go = Request::GroupStart(maneuvers::GoTo::params(300, 600, 200).unwrap());
     let reply = request(&mut cosim, &mut events, &ground, &go);
     assert_eq!(reply, Reply::GroupStarted);
     let pose0 = cosim.lbc.vehicle().pose();
@@ -607,11 +603,7 @@ fn model_speed_firmware_maneuver() {
             pending = Some(ground.borrow_mut().request(now, &Request::Status));
             stage = 1;
         } else if stage == 1 {
-            let go = Request::GroupStart(ManeuverParams::GoTo {
-                x: 300,
-                y: 600,
-                speed_mm_s: 200,
-            });
+            let go = Request::GroupStart(maneuvers::GoTo::params(300, 600, 200).unwrap());
             pending = Some(ground.borrow_mut().request(now, &go));
             stage = 2;
         }

@@ -1,12 +1,14 @@
 //! `cargo xtask`: the project's commands.
 //!
-//! `demo` runs the main job, `test` runs every test, `fw` builds the firmware, `qemu` boots it,
+//! `demo` runs the main job, `test` runs every test, `fw` builds the firmware (or a program,
+//! `--bin`), `new-program` makes a program from the template, `qemu` boots the firmware,
 //! `bench` measures. Each installs what it needs first (see `install`).
 
 mod bench;
 mod demo;
 mod fw;
 mod install;
+mod program;
 mod qemu;
 mod test;
 
@@ -32,6 +34,10 @@ enum Cmd {
         /// Board to build for.
         #[arg(long, default_value = "qemu_virt")]
         board: String,
+        /// The firmware binary: `ubc-app` (the stock program) or a program made with
+        /// `new-program`.
+        #[arg(long, default_value = fw::BIN)]
+        bin: String,
         /// Debug build instead of release.
         #[arg(long)]
         debug: bool,
@@ -39,6 +45,11 @@ enum Cmd {
         /// program.
         #[arg(long)]
         echo_test: bool,
+    },
+    /// Make a new upper-board program from the template: `ubc-app/src/bin/NAME.rs`.
+    NewProgram {
+        /// The program's name: lowercase letters, digits and `_`.
+        name: String,
     },
     /// Boot the firmware in QEMU with its UARTs attached to sockets.
     Qemu(qemu::QemuArgs),
@@ -53,12 +64,14 @@ fn main() {
         Cmd::Test(args) => test::run(args),
         Cmd::Fw {
             board,
+            bin,
             debug,
             echo_test,
         } => {
             let features: &[&str] = if echo_test { &["echo-test"] } else { &[] };
-            fw::build_features(&board, fw::BIN, features, !debug).map(|_| ())
+            fw::build_features(&board, &bin, features, !debug).map(|_| ())
         }
+        Cmd::NewProgram { name } => program::create(&fw::app_dir(), &name),
         Cmd::Qemu(args) => qemu::run(args),
         Cmd::Bench(args) => bench::run(args),
     };

@@ -1,7 +1,51 @@
 //! Checking an experiment file: every field in its range, named in the error.
 
+use super::law_phase::{law_phase, program_phase};
 use super::raw::{EngineName, KindName, RawExperiment, RawPhase, ShapeName};
 use super::*;
+use maneuvers::args::{set_option, Arg};
+
+/// The kinds with fields of their own; every other registered law is read by
+/// [`law_phase`].
+const OWN_KINDS: [&str; 4] = ["goto", "formation", "rendezvous", "circle"];
+
+/// A phase's start, timeout and hold time, checked.
+pub(super) fn timing(
+    phase: usize,
+    start_s: Option<f64>,
+    timeout_s: Option<f64>,
+    hold_s: Option<f64>,
+) -> Result<(Start, Option<f64>, f64), Invalid> {
+    let range = |field, v: f64| {
+        if v.is_finite() && (0.0..=1e6).contains(&v) {
+            Ok(())
+        } else {
+            Err(Invalid::OutOfRange {
+                phase,
+                field,
+                value: v,
+                min: if field == "timeout_s" { 0.1 } else { 0.0 },
+                max: 1e6,
+            })
+        }
+    };
+    if let Some(t) = timeout_s {
+        range("timeout_s", t)?;
+        if t < 0.1 {
+            range("timeout_s", f64::NAN)?;
+        }
+    }
+    let hold_s = hold_s.unwrap_or(DEFAULT_HOLD_S);
+    range("hold_s", hold_s)?;
+    let start = match start_s {
+        Some(t) => {
+            range("start_s", t)?;
+            Start::At(t)
+        }
+        None => Start::AfterPrevious,
+    };
+    Ok((start, timeout_s, hold_s))
+}
 
 /// Longest `duration_s`: a day of maneuvers.
 pub const MAX_DURATION_S: f64 = 86_400.0;
@@ -88,18 +132,8 @@ impl PhaseCheck<'_> {
     fn check(&self) -> Result<Phase, Invalid> {
         let r = self.raw;
         let n = self.n;
-        if let Some(t) = r.timeout_s {
-            self.range("timeout_s", t, 0.1, 1e6)?;
-        }
-        let hold_s = r.hold_s.unwrap_or(DEFAULT_HOLD_S);
-        self.range("hold_s", hold_s, 0.0, 1e6)?;
-        let start = match r.start_s {
-            Some(t) => {
-                self.range("start_s", t, 0.0, 1e6)?;
-                Start::At(t)
-            }
-            None => Start::AfterPrevious,
-        };
+        let (start, timeout_s, hold_s) = timing(n, r.start_s, r.timeout_s, r.hold_s)?;
+        let overrides = self.options()?;
         let goto_fields = [("cars", r.cars.is_some())];
         let formation_fields = [
             ("shape", r.shape.is_some()),
@@ -271,13 +305,64 @@ impl PhaseCheck<'_> {
         };
         let tolerance_mm = r.tolerance_mm.unwrap_or(default_tolerance);
         self.range("tolerance_mm", tolerance_mm, 0.0, 5000.0)?;
+        if matches!(
+            kind,
+            PhaseKind::Goto {
+                speed_mm_s: None,
+                ..
+            }
+        ) && overrides != Overrides::default()
+        {
+            let field = ["reverse", "arrival_units", "neighbours"]
+                .into_iter()
+                .zip([
+                    r.reverse.is_some(),
+                    r.arrival_units.is_some(),
+                    r.neighbours.is_some(),
+                ])
+                .find_map(|(f, set)| set.then_some(f))
+                .unwrap_or("reverse");
+            return Err(Invalid::NotApplicable {
+                phase: n,
+                kind: "goto without speed_mm_s",
+                field,
+            });
+        }
         Ok(Phase {
             kind,
             start,
-            timeout_s: r.timeout_s,
+            timeout_s,
             hold_s,
             tolerance_mm,
+            overrides,
         })
+    }
+
+    /// The option keys of the group law.
+    fn options(&self) -> Result<Overrides, Invalid> {
+        let r = self.raw;
+        let mut o = Overrides::default();
+        let neighbours = match &r.neighbours {
+            Some(toml::Value::Integer(i)) => Some(Arg::Int(*i)),
+            Some(toml::Value::String(s)) => Some(Arg::Word(s)),
+            Some(_) => Some(Arg::Word("?")),
+            None => None,
+        };
+        for (key, value) in [
+            ("reverse", r.reverse.as_deref().map(Arg::Word)),
+            ("arrival_units", r.arrival_units.map(Arg::Int)),
+            ("neighbours", neighbours),
+        ] {
+            if let Some(v) = value {
+                set_option(key, v, &mut o).map_err(|e| Invalid::LawArgument {
+                    phase: self.n,
+                    law: self.kind,
+                    car: None,
+                    message: e.to_string(),
+                })?;
+            }
+        }
+        Ok(o)
     }
 }
 
@@ -319,6 +404,18 @@ impl Experiment {
         if let Some(&id) = raw.profile_cars.iter().find(|id| !ids.contains(id)) {
             return Err(Invalid::CarId { id });
         }
+        for c in &raw.cars {
+            if let Firmware::Program(name) = c.firmware(None) {
+                let ok = name.len() <= 40
+                    && name.starts_with(|ch: char| ch.is_ascii_lowercase())
+                    && name
+                        .bytes()
+                        .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
+                if !ok {
+                    return Err(Invalid::Firmware { id: c.id, name });
+                }
+            }
+        }
         let threads = raw.threads.unwrap_or(1);
         if !(1..=MAX_THREADS).contains(&threads) {
             return Err(Invalid::OutOfRange {
@@ -334,28 +431,50 @@ impl Experiment {
                 return Err(Invalid::CameraFps { value });
             }
         }
-        let raws: Vec<RawPhase> = match (raw.maneuver, raw.phases.is_empty()) {
+        let tables: Vec<toml::Table> = match (raw.maneuver, raw.phases.is_empty()) {
             (Some(m), true) => vec![m],
             (None, false) => raw.phases,
             _ => return Err(Invalid::Maneuvers),
         };
         let mut phases = Vec::new();
         let mut last_start = 0.0;
-        for (i, r) in raws.iter().enumerate() {
-            let kind = match r.kind {
-                Some(KindName::Goto) => "goto",
-                Some(KindName::Formation) => "formation",
-                Some(KindName::Rendezvous) => "rendezvous",
-                Some(KindName::Circle) => "circle",
-                None => "?",
+        for (i, t) in tables.iter().enumerate() {
+            let n = i + 1;
+            let kind = match t.get("kind") {
+                None => return Err(Invalid::MissingKind { phase: n }),
+                Some(toml::Value::String(k)) => k.as_str(),
+                Some(_) => {
+                    return Err(Invalid::PhaseTable {
+                        phase: n,
+                        what: "`kind` must be a string".into(),
+                    })
+                }
             };
-            let p = PhaseCheck {
-                n: i + 1,
-                kind,
-                raw: r,
-                cars: &ids,
-            }
-            .check()?;
+            let p = if let Some(&own) = OWN_KINDS.iter().find(|k| **k == kind) {
+                let r: RawPhase =
+                    toml::Value::Table(t.clone())
+                        .try_into()
+                        .map_err(|e: toml::de::Error| Invalid::PhaseTable {
+                            phase: n,
+                            what: e.to_string(),
+                        })?;
+                PhaseCheck {
+                    n,
+                    kind: own,
+                    raw: &r,
+                    cars: &ids,
+                }
+                .check()?
+            } else if kind == "program" {
+                program_phase(n, t, &ids)?
+            } else if let Some(law) = maneuvers::registry::find(kind) {
+                law_phase(n, law, t, &ids)?
+            } else {
+                return Err(Invalid::UnknownKind {
+                    phase: n,
+                    kind: kind.to_owned(),
+                });
+            };
             if let Start::At(t) = p.start {
                 if t < last_start || (i == 0 && t != 0.0) {
                     return Err(Invalid::StartOrder { phase: i + 1 });
@@ -381,6 +500,7 @@ impl Experiment {
             realtime: false,
             on_car_failure: raw.on_car_failure.unwrap_or_default(),
             profile_cars: raw.profile_cars,
+            base_dir: None,
         };
         e.check_faults()?;
         Ok(e)

@@ -25,6 +25,13 @@ pub enum ExperimentError {
     },
     /// The world failed.
     World(WorldError),
+    /// A car's firmware (`firmware` of `[[cars]]`) could not be found or built.
+    Firmware {
+        /// The car.
+        id: u8,
+        /// Why.
+        reason: String,
+    },
     /// A car did not complete bring-up in time.
     BringUp {
         /// The car.
@@ -167,6 +174,39 @@ pub enum Invalid {
         /// The phase.
         phase: usize,
     },
+    /// A phase's `kind` is neither one of the kinds nor a registered law.
+    UnknownKind {
+        /// The phase.
+        phase: usize,
+        /// The kind given.
+        kind: String,
+    },
+    /// A phase table that does not read (a wrong type, an unknown key of a kind with its own
+    /// fields).
+    PhaseTable {
+        /// The phase.
+        phase: usize,
+        /// What is wrong.
+        what: String,
+    },
+    /// A law's parameter or option is unknown, missing or out of range.
+    LawArgument {
+        /// The phase.
+        phase: usize,
+        /// The law.
+        law: &'static str,
+        /// The car whose `[[phases.cars]]` values are wrong (`None`: the phase's).
+        car: Option<u8>,
+        /// What is wrong, and what the law takes.
+        message: String,
+    },
+    /// A car's `firmware` names no program (lowercase letters, digits and `_`) and is no path.
+    Firmware {
+        /// The car.
+        id: u8,
+        /// The name given.
+        name: String,
+    },
     /// A fault setting outside its range.
     Fault {
         /// The field.
@@ -242,6 +282,31 @@ impl fmt::Display for Invalid {
                 "phase {phase}: `start_s` must not be before an earlier phase's (the first starts at 0)"
             ),
             Self::Fault { field, value } => write!(f, "faults: `{field}` = {value} is out of range"),
+            Self::UnknownKind { phase, kind } => {
+                let laws: Vec<&str> = maneuvers::LAWS.iter().map(|l| l.name).collect();
+                write!(
+                    f,
+                    "phase {phase}: unknown kind `{kind}`; the kinds are program and the registered laws: {}",
+                    laws.join(", ")
+                )
+            }
+            Self::PhaseTable { phase, what } => write!(f, "phase {phase}: {what}"),
+            Self::LawArgument {
+                phase,
+                law,
+                car: None,
+                message,
+            } => write!(f, "phase {phase} ({law}): {message}"),
+            Self::LawArgument {
+                phase,
+                law,
+                car: Some(id),
+                message,
+            } => write!(f, "phase {phase} ({law}), car {id}: {message}"),
+            Self::Firmware { id, name } => write!(
+                f,
+                "car {id}: `firmware` = {name:?} is neither a program name (lowercase letters, digits, '_') nor a path to an ELF"
+            ),
         }
     }
 }
@@ -254,6 +319,7 @@ impl fmt::Display for ExperimentError {
             Self::Invalid(i) => write!(f, "invalid experiment: {i}"),
             Self::InFile { path, source } => write!(f, "{}: {source}", path.display()),
             Self::World(e) => write!(f, "{e}"),
+            Self::Firmware { id, reason } => write!(f, "car {id}'s firmware: {reason}"),
             Self::BringUp { id, last } => {
                 write!(
                     f,

@@ -9,7 +9,7 @@ use crate::camera_feed::FeedConfig;
 use crate::radio_medium::MediumParams;
 use crate::world::{CarSpec, EngineKind, TrackingParams, WorldConfig, WorldError, MM_PER_UNIT};
 use lbc_emu::{FaultConfig, Pose};
-use maneuvers::{ManeuverParams, Shape};
+use maneuvers::{Circle, Formation, GoTo, LawInfo, ManeuverParams, Overrides, Rendezvous, Shape};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::fs;
@@ -23,6 +23,7 @@ pub use error::{CarProblem, ExperimentError, Invalid};
 
 mod check;
 mod error;
+mod law_phase;
 mod raw;
 use raw::RawExperiment;
 #[cfg(test)]
@@ -81,6 +82,9 @@ pub struct Experiment {
     /// Cars whose processor time is profiled by function (`profile-car<ID>.txt`; virtual-time
     /// engine only).
     pub profile_cars: Vec<u8>,
+    /// The directory relative firmware paths of `[[cars]]` are taken from (the file's
+    /// directory; `None`: the current directory).
+    pub base_dir: Option<PathBuf>,
 }
 
 /// What the world and the run do when a car's firmware stops (trap, exit, stuck processor,
@@ -98,7 +102,7 @@ pub enum FailurePolicy {
 }
 
 /// A car and its start pose (tracking units, 2.5 mm; heading mrad counter-clockwise from +X).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CarEntry {
     /// Car ID, 1..=126.
@@ -110,6 +114,39 @@ pub struct CarEntry {
     /// Heading, 0..=6283 mrad.
     #[serde(default)]
     pub heading_mrad: u16,
+    /// This car's firmware: a program's name (`cargo xtask fw --bin NAME` builds it for the
+    /// engine's board) or a path to an ELF (containing `/` or ending in `.elf`; relative to
+    /// the experiment file). Default: the engine's stock firmware.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub firmware: Option<String>,
+}
+
+/// What runs on a car.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Firmware {
+    /// The engine's stock firmware (`--firmware` of the run).
+    Stock,
+    /// A program built by name for the engine's board.
+    Program(String),
+    /// An ELF file.
+    Elf(PathBuf),
+}
+
+impl CarEntry {
+    /// What this car runs (relative paths are taken from `base`).
+    pub fn firmware(&self, base: Option<&Path>) -> Firmware {
+        match self.firmware.as_deref() {
+            None | Some("ubc-app") => Firmware::Stock,
+            Some(f) if f.contains('/') || f.ends_with(".elf") => {
+                let p = Path::new(f);
+                Firmware::Elf(match base {
+                    Some(b) if p.is_relative() => b.join(p),
+                    _ => p.to_path_buf(),
+                })
+            }
+            Some(name) => Firmware::Program(name.to_owned()),
+        }
+    }
 }
 
 /// One car's go-to points, tracking units.
@@ -145,6 +182,9 @@ pub struct Phase {
     pub hold_s: f64,
     /// The completion test's bound on the phase error, mm (not used by `goto`).
     pub tolerance_mm: f64,
+    /// Options the group law runs with instead of its defaults (`reverse`, `arrival_units`,
+    /// `neighbours`).
+    pub overrides: Overrides,
 }
 
 /// A formation phase.
@@ -199,6 +239,51 @@ pub enum PhaseKind {
         /// Speed along the circle, mm/s (positive counter-clockwise).
         speed_mm_s: i16,
     },
+    /// Any other registered law, judged by the cars' own reports.
+    Law(LawPhase),
+    /// Every listed car runs its firmware's program loop.
+    Program(ProgramPhase),
+}
+
+/// A phase of a registered law other than the four above.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LawPhase {
+    /// The law.
+    pub law: &'static LawInfo,
+    /// Every car's group command (all cars of the experiment, each with its overrides from
+    /// `[[phases.cars]]` applied).
+    pub params: Vec<(u8, ManeuverParams)>,
+    /// Waypoints `[[x, y], ...]`, tracking units, given to `waypoint_cars`.
+    pub waypoints: Vec<[u16; 2]>,
+    /// When each waypoint is sent, s after the phase started (`None`: once the first of
+    /// `waypoint_cars` reached the previous one).
+    pub waypoint_at_s: Option<Vec<f64>>,
+    /// A car has reached a waypoint within this distance, tracking units.
+    pub reach_units: u16,
+    /// The cars the waypoints go to; the first one's arrival sends the next.
+    pub waypoint_cars: Vec<u8>,
+}
+
+/// A `program` phase.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProgramPhase {
+    /// The cars whose program runs.
+    pub cars: Vec<u8>,
+    /// Its arguments.
+    pub args: Vec<i16>,
+}
+
+/// Where a phase's waypoints go and when.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WaypointPlan<'a> {
+    /// The waypoints.
+    pub waypoints: &'a [[u16; 2]],
+    /// Their times, if given.
+    pub at_s: Option<&'a [f64]>,
+    /// Reach distance, tracking units.
+    pub reach_units: u16,
+    /// The cars that get them; the first one's arrival counts.
+    pub cars: &'a [u8],
 }
 
 impl PhaseKind {
@@ -209,6 +294,8 @@ impl PhaseKind {
             PhaseKind::Formation(_) => "formation",
             PhaseKind::Rendezvous { .. } => "rendezvous",
             PhaseKind::Circle { .. } => "circle",
+            PhaseKind::Law(l) => l.law.name,
+            PhaseKind::Program(_) => "program",
         }
     }
 }
@@ -218,45 +305,67 @@ impl Phase {
     /// for a car without a point in a group `goto`, and for a car that is neither leader nor
     /// follower of a formation: these stand still).
     pub fn params_for(&self, id: u8) -> Option<ManeuverParams> {
+        self.law_params(id)
+            .map(|p| p.with_overrides(merge(p.overrides(), self.overrides)))
+    }
+
+    /// The waypoints of a formation (to its leader) or of a law phase.
+    pub fn waypoint_plan(&self) -> Option<WaypointPlan<'_>> {
         match &self.kind {
+            PhaseKind::Formation(f) => Some(WaypointPlan {
+                waypoints: &f.waypoints,
+                at_s: f.waypoint_at_s.as_deref(),
+                reach_units: f.reach_units,
+                cars: core::slice::from_ref(&f.leader),
+            }),
+            PhaseKind::Law(l) => Some(WaypointPlan {
+                waypoints: &l.waypoints,
+                at_s: l.waypoint_at_s.as_deref(),
+                reach_units: l.reach_units,
+                cars: &l.waypoint_cars,
+            }),
+            _ => None,
+        }
+    }
+
+    /// Whether car `id` runs its program loop in this phase.
+    pub fn runs_program(&self, id: u8) -> bool {
+        matches!(&self.kind, PhaseKind::Program(p) if p.cars.contains(&id))
+    }
+
+    fn law_params(&self, id: u8) -> Option<ManeuverParams> {
+        match &self.kind {
+            PhaseKind::Law(l) => l.params.iter().find(|(c, _)| *c == id).map(|(_, p)| *p),
+            PhaseKind::Program(_) => None,
             PhaseKind::Goto {
                 speed_mm_s: Some(speed),
                 ..
-            } => self.goto_points(id).first().map(|p| ManeuverParams::GoTo {
-                x: p[0],
-                y: p[1],
-                speed_mm_s: *speed,
-            }),
+            } => self
+                .goto_points(id)
+                .first()
+                .and_then(|p| GoTo::params(p[0], p[1], *speed).ok()),
             PhaseKind::Goto { .. } => None,
             PhaseKind::Formation(f) if f.leader != id && !f.followers.contains(&id) => None,
-            PhaseKind::Formation(f) => Some(ManeuverParams::Formation {
-                shape: f.shape,
-                leader: f.leader,
-                slot: f
-                    .followers
+            PhaseKind::Formation(f) => Formation::params(
+                f.shape,
+                f.leader,
+                f.followers
                     .iter()
                     .position(|&c| c == id)
                     .and_then(|k| u8::try_from(k).ok()),
-                spacing_units: f.spacing_units,
-                speed_mm_s: f.speed_mm_s,
-            }),
+                f.spacing_units,
+                f.speed_mm_s,
+            )
+            .ok(),
             PhaseKind::Rendezvous {
                 radius_units,
                 speed_mm_s,
-            } => Some(ManeuverParams::Rendezvous {
-                radius_units: *radius_units,
-                speed_mm_s: *speed_mm_s,
-            }),
+            } => Rendezvous::params(*radius_units, *speed_mm_s).ok(),
             PhaseKind::Circle {
                 centre,
                 radius_units,
                 speed_mm_s,
-            } => Some(ManeuverParams::Circle {
-                cx: centre[0],
-                cy: centre[1],
-                radius_units: *radius_units,
-                speed_mm_s: *speed_mm_s,
-            }),
+            } => Circle::params(centre[0], centre[1], *radius_units, *speed_mm_s).ok(),
         }
     }
 
@@ -270,6 +379,15 @@ impl Phase {
                 .unwrap_or_default(),
             _ => Vec::new(),
         }
+    }
+}
+
+/// `over` where it sets an option, else `base`.
+fn merge(base: Overrides, over: Overrides) -> Overrides {
+    Overrides {
+        reverse: over.reverse.or(base.reverse),
+        arrival_units: over.arrival_units.or(base.arrival_units),
+        neighbours: over.neighbours.or(base.neighbours),
     }
 }
 
@@ -355,10 +473,42 @@ impl Experiment {
             path: path.into(),
             source,
         })?;
-        Self::parse(&text).map_err(|e| ExperimentError::InFile {
+        let mut e = Self::parse(&text).map_err(|e| ExperimentError::InFile {
             path: path.into(),
             source: Box::new(e),
-        })
+        })?;
+        e.base_dir = path.parent().map(Path::to_path_buf);
+        Ok(e)
+    }
+
+    /// Every car's firmware for `engine`: `None` for the stock firmware, else the ELF (a
+    /// program named in the file is built for the engine's board).
+    pub fn car_firmware(
+        &self,
+        engine: EngineKind,
+    ) -> Result<Vec<Option<PathBuf>>, ExperimentError> {
+        self.cars
+            .iter()
+            .map(|c| match c.firmware(self.base_dir.as_deref()) {
+                Firmware::Stock => Ok(None),
+                Firmware::Elf(p) => {
+                    if p.is_file() {
+                        Ok(Some(p))
+                    } else {
+                        Err(ExperimentError::Firmware {
+                            id: c.id,
+                            reason: format!("{} is not a file", p.display()),
+                        })
+                    }
+                }
+                Firmware::Program(name) => engine.program_firmware(&name).map(Some).map_err(|e| {
+                    ExperimentError::Firmware {
+                        id: c.id,
+                        reason: format!("program `{name}`: {e}"),
+                    }
+                }),
+            })
+            .collect()
     }
 
     /// Parses and checks an experiment.

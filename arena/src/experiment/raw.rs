@@ -13,9 +13,9 @@ pub(super) struct RawExperiment {
     #[serde(default = "bringup_default")]
     pub(super) bringup_s: f64,
     pub(super) cars: Vec<CarEntry>,
-    pub(super) maneuver: Option<RawPhase>,
+    pub(super) maneuver: Option<toml::Table>,
     #[serde(default)]
-    pub(super) phases: Vec<RawPhase>,
+    pub(super) phases: Vec<toml::Table>,
     #[serde(default)]
     pub(super) faults: Faults,
     pub(super) camera_fps: Option<f64>,
@@ -57,7 +57,8 @@ pub(super) enum ShapeName {
     Wedge,
 }
 
-/// One `[maneuver]` or `[[phases]]` table: every field of every kind, checked per kind.
+/// One `[maneuver]` or `[[phases]]` table of the kinds `goto`, `formation`, `rendezvous` and
+/// `circle`: every field of these kinds, checked per kind.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawPhase {
@@ -77,4 +78,21 @@ pub(super) struct RawPhase {
     pub(super) reach_units: Option<u16>,
     pub(super) radius_units: Option<u16>,
     pub(super) centre: Option<[u16; 2]>,
+    pub(super) reverse: Option<String>,
+    pub(super) arrival_units: Option<i64>,
+    pub(super) neighbours: Option<toml::Value>,
+}
+
+/// A `program` phase: every car listed runs its firmware's program loop.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawProgramPhase {
+    #[allow(dead_code)]
+    pub(super) kind: String,
+    pub(super) start_s: Option<f64>,
+    pub(super) timeout_s: Option<f64>,
+    pub(super) hold_s: Option<f64>,
+    pub(super) cars: Option<Vec<u8>>,
+    #[serde(default)]
+    pub(super) args: Vec<i64>,
 }

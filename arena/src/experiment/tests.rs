@@ -127,33 +127,19 @@ fn a_sequence_of_group_phases() {
     assert_eq!(f.hold_s, DEFAULT_HOLD_S);
     assert_eq!(f.tolerance_mm, DEFAULT_FORMATION_TOLERANCE_MM);
     // Slots follow the `followers` order; the leader has none.
-    let slot = |id| match f.params_for(id) {
-        Some(ManeuverParams::Formation {
-            slot,
-            shape,
-            leader,
-            spacing_units,
-            speed_mm_s,
-        }) => {
-            assert_eq!(
-                (shape, leader, spacing_units, speed_mm_s),
-                (Shape::Wedge, 1, 100, 100)
-            );
-            slot
-        }
-        other => panic!("{other:?}"),
+    // Values: shape, leader, slot (-1: none), spacing, speed.
+    let slot = |id: u8| {
+        let p = f.params_for(id).unwrap();
+        let v = p.values().as_slice();
+        assert_eq!(p.law(), 1);
+        assert_eq!((v[0], v[1], v[3], v[4]), (Shape::Wedge as i32, 1, 100, 100));
+        v[2]
     };
-    assert_eq!(
-        (slot(1), slot(2), slot(3), slot(4)),
-        (None, Some(1), Some(0), Some(2))
-    );
+    assert_eq!((slot(1), slot(2), slot(3), slot(4)), (-1, 1, 0, 2));
     let r = &e.phases[1];
     assert_eq!(
         r.params_for(4),
-        Some(ManeuverParams::Rendezvous {
-            radius_units: 60,
-            speed_mm_s: 200
-        })
+        Some(maneuvers::Rendezvous::params(60, 200).unwrap())
     );
     assert_eq!(r.tolerance_mm, 475.0);
     assert_eq!(r.hold_s, 3.0);
@@ -161,17 +147,15 @@ fn a_sequence_of_group_phases() {
     assert_eq!(c.start, Start::At(90.0));
     assert_eq!(
         c.params_for(2),
-        Some(ManeuverParams::Circle {
-            cx: 300,
-            cy: 400,
-            radius_units: 150,
-            speed_mm_s: -120
-        })
+        Some(maneuvers::Circle::params(300, 400, 150, -120).unwrap())
     );
     // Every car's parameters encode.
     for p in &e.phases {
         for car in &e.cars {
-            p.params_for(car.id).unwrap().encode().unwrap();
+            p.params_for(car.id)
+                .unwrap()
+                .encode(&mut [0; maneuvers::params::MAX_LEN])
+                .unwrap();
         }
     }
 }
@@ -186,11 +170,7 @@ fn goto_with_a_speed_uses_the_group_law() {
     let p = &e.phases[0];
     assert_eq!(
         p.params_for(2),
-        Some(ManeuverParams::GoTo {
-            x: 450,
-            y: 500,
-            speed_mm_s: 200
-        })
+        Some(maneuvers::GoTo::params(450, 500, 200).unwrap())
     );
     assert_eq!(p.tolerance_mm, DEFAULT_GOTO_TOLERANCE_MM);
     // Without a speed: the console go-to, no group parameters.
@@ -247,10 +227,16 @@ fn bad_experiments_are_rejected_with_reasons() {
         bad("x = 150", "x = 70000"),
         ExperimentError::Parse(_)
     ));
-    assert!(matches!(
-        bad("kind = \"goto\"", "kind = \"orbit\""),
-        ExperimentError::Parse(_)
-    ));
+    match bad("kind = \"goto\"", "kind = \"orbit\"") {
+        ExperimentError::Invalid(i @ Invalid::UnknownKind { phase: 1, .. }) => {
+            let text = i.to_string();
+            assert!(
+                text.contains("unknown kind `orbit`; the kinds are program and the registered laws: formation, rendezvous, circle, goto"),
+                "{text}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
     assert!(matches!(
         bad(
             "[faults]",
@@ -566,3 +552,5 @@ fn engine_threads_failure_policy_and_profiles_from_the_file() {
         Err(ExperimentError::Parse(_))
     ));
 }
+
+mod laws;

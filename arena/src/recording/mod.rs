@@ -117,9 +117,9 @@ impl<'f> Recording<'f> {
                 let mut pts = Vec::new();
                 for p in &exp.phases {
                     pts.extend(p.goto_points(id).into_iter().map(units_mm));
-                    if let PhaseKind::Formation(f) = &p.kind {
-                        if f.leader == id {
-                            pts.extend(f.waypoints.iter().copied().map(units_mm));
+                    if let Some(plan) = p.waypoint_plan() {
+                        if plan.cars.first() == Some(&id) {
+                            pts.extend(plan.waypoints.iter().copied().map(units_mm));
                         }
                     }
                 }

@@ -198,22 +198,36 @@ impl Runner<'_> {
                 PhaseKind::Goto {
                     speed_mm_s: None, ..
                 } => !phase.goto_points(id).is_empty(),
+                PhaseKind::Program(_) => phase.runs_program(id),
                 _ => phase.params_for(id).is_some(),
             })
             .count();
         if let Some(a) = self.active.as_mut() {
             a.needed_acks = needed;
         }
-        if let PhaseKind::Goto { .. } = phase.kind {
+        if let PhaseKind::Goto { .. } | PhaseKind::Program(_) = phase.kind {
             for (k, &id) in ids.iter().enumerate() {
                 self.cars[k].goto_offset = 0;
-                if !phase.goto_points(id).is_empty() {
+                if !phase.goto_points(id).is_empty() || phase.runs_program(id) {
                     self.cars[k].goto_running = true;
                     self.cars[k].arrival = None;
                 }
             }
         }
         match &phase.kind {
+            PhaseKind::Program(p) => {
+                for &id in &ids {
+                    if phase.runs_program(id) {
+                        self.enqueue(
+                            id,
+                            Request::ProgramStart(p.args.iter().copied().collect()),
+                            Purpose::Start { phase: index },
+                        );
+                    } else if index > 0 {
+                        self.enqueue(id, Request::ManeuverStop, Purpose::Stop { phase: index });
+                    }
+                }
+            }
             PhaseKind::Goto {
                 speed_mm_s: None, ..
             } => {
@@ -271,9 +285,15 @@ impl Runner<'_> {
             return;
         }
         let phase = &self.exp.phases[index];
-        let req = match phase.params_for(id) {
-            Some(params) => Request::GroupStart(params),
-            None => {
+        let req = match (phase.params_for(id), &phase.kind) {
+            (Some(params), _) => Request::GroupStart(params),
+            (None, PhaseKind::Program(p)) => {
+                if !phase.runs_program(id) || !self.cars[k].goto_running {
+                    return;
+                }
+                Request::ProgramStart(p.args.iter().copied().collect())
+            }
+            (None, _) => {
                 let points = phase.goto_points(id);
                 if !self.cars[k].goto_running || points.is_empty() {
                     return;
@@ -288,10 +308,11 @@ impl Runner<'_> {
             }
         };
         self.cars[k].started_at = None;
-        let waypoint = match &phase.kind {
-            PhaseKind::Formation(f) if f.leader == id && a.next_waypoint > 0 => {
-                Some((a.next_waypoint - 1, f.waypoints[a.next_waypoint - 1]))
-            }
+        let waypoint = match phase.waypoint_plan() {
+            Some(plan) if plan.cars.contains(&id) && a.next_waypoint > 0 => plan
+                .waypoints
+                .get(a.next_waypoint - 1)
+                .map(|&w| (a.next_waypoint - 1, w)),
             _ => None,
         };
         self.log.push(
@@ -412,21 +433,24 @@ impl Runner<'_> {
                     c.status_sent = Some(sent);
                     // A console go-to that was running when this was asked has ended:
                     // finished if the car is at its last point, else aborted (started again).
-                    let console_goto = self.active.as_ref().is_some_and(|a| {
-                        matches!(
-                            self.exp.phases[a.index].kind,
-                            PhaseKind::Goto {
-                                speed_mm_s: None,
-                                ..
+                    let (console_goto, program) =
+                        self.active.as_ref().map_or((false, false), |a| {
+                            match self.exp.phases[a.index].kind {
+                                PhaseKind::Goto {
+                                    speed_mm_s: None, ..
+                                } => (true, false),
+                                PhaseKind::Program(_) => (false, true),
+                                _ => (false, false),
                             }
-                        )
-                    });
-                    if console_goto
+                        });
+                    if (console_goto || program)
                         && c.goto_running
                         && c.started_at.is_some_and(|a| a <= sent)
                         && s.flags & flags::MANEUVER == 0
                     {
-                        if self.at_last_point(k) {
+                        // A program that is no longer running has finished (an aborted one
+                        // is started again on its ManeuverAborted-like notices).
+                        if program || self.at_last_point(k) {
                             let c = &mut self.cars[k];
                             c.goto_running = false;
                             c.arrival = Some(t);
@@ -450,16 +474,18 @@ impl Runner<'_> {
             }
             (Purpose::Status | Purpose::Camera, _) => {}
             (Purpose::Stop { .. }, _) => {}
-            (Purpose::Restart { phase }, Reply::GroupStarted | Reply::ManeuverStarted(_))
-                if self.current(phase) =>
-            {
+            (
+                Purpose::Restart { phase },
+                Reply::GroupStarted | Reply::ManeuverStarted(_) | Reply::ProgramStarted,
+            ) if self.current(phase) => {
                 if let Some(k) = k {
                     self.cars[k].started_at = Some(self.world.now());
                 }
             }
-            (Purpose::Start { phase }, Reply::GroupStarted | Reply::ManeuverStarted(_))
-                if self.current(phase) =>
-            {
+            (
+                Purpose::Start { phase },
+                Reply::GroupStarted | Reply::ManeuverStarted(_) | Reply::ProgramStarted,
+            ) if self.current(phase) => {
                 if let Some(k) = k {
                     self.cars[k].started_at = Some(self.world.now());
                 }
@@ -495,6 +521,19 @@ impl Runner<'_> {
                 self.fatal = Some(ExperimentError::ManeuverRefused {
                     id: cmd.car,
                     reply: format!("{r:?} (does the firmware support group maneuvers?)"),
+                });
+            }
+            (_, Reply::Refused(r @ (Refusal::UnknownLaw | Refusal::NoProgram))) => {
+                self.fatal = Some(ExperimentError::ManeuverRefused {
+                    id: cmd.car,
+                    reply: match r {
+                        Refusal::UnknownLaw => "UnknownLaw (the car's firmware was built \
+                            without this law: rebuild it)"
+                            .to_owned(),
+                        _ => "NoProgram (the car runs firmware without a program loop: give \
+                            it `firmware = \"NAME\"` in [[cars]])"
+                            .to_owned(),
+                    },
                 });
             }
             (_, other) => self.failed(cmd, &format!("{other:?}")),
@@ -538,68 +577,70 @@ impl Runner<'_> {
         }
     }
 
-    /// Formation waypoints: the next one once the leader reached the previous one (or at its
-    /// time).
+    /// Waypoints of a formation (to its leader) or of a law phase (to its waypoint cars): the
+    /// next one once the first of them reached the previous one (or at its time).
     pub(super) fn waypoints(&mut self, now: &[Sample]) {
         let Some(a) = &self.active else { return };
         let index = a.index;
-        let PhaseKind::Formation(f) = &self.exp.phases[index].kind else {
+        let phase = &self.exp.phases[index];
+        let Some(plan) = phase.waypoint_plan() else {
             return;
         };
         let next = a.next_waypoint;
-        if next >= f.waypoints.len() {
+        let (Some(&[x, y]), Some(&first)) = (plan.waypoints.get(next), plan.cars.first()) else {
             return;
-        }
-        let leader_started = self
-            .car_index(f.leader)
+        };
+        let started = self
+            .car_index(first)
             .is_some_and(|k| self.cars[k].started_at.is_some());
-        if !leader_started {
+        if !started {
             return;
         }
-        let due = match &f.waypoint_at_s {
+        let due = match plan.at_s {
             Some(at) => (self.world.now() - a.start).as_secs_f64() >= at[next],
             None => {
                 next == 0 || {
                     // Reached the previous waypoint (acknowledged before).
-                    let Some(k) = self.car_index(f.leader) else {
+                    let Some(k) = self.car_index(first) else {
                         return;
                     };
                     a.waypoint_acked >= next
-                        && distance_to(&now[k], f.waypoints[next - 1])
-                            <= f64::from(f.reach_units) * MM_PER_UNIT
+                        && distance_to(&now[k], plan.waypoints[next - 1])
+                            <= f64::from(plan.reach_units) * MM_PER_UNIT
                 }
             }
         };
         if !due {
             return;
         }
-        let [x, y] = f.waypoints[next];
-        let leader = f.leader;
-        if next > 0 && f.waypoint_at_s.is_none() {
+        let cars = plan.cars.to_vec();
+        if next > 0 && plan.at_s.is_none() {
             self.log.push(
                 self.world.now(),
-                Some(leader),
+                Some(first),
                 "waypoint-reached",
                 json!({ "phase": index + 1, "index": next - 1 }),
             );
         }
         self.log.push(
             self.world.now(),
-            Some(leader),
+            Some(first),
             "waypoint-sent",
             json!({ "phase": index + 1, "index": next, "x": x, "y": y }),
         );
         if let Some(a) = self.active.as_mut() {
             a.next_waypoint = next + 1;
         }
-        self.enqueue(
-            leader,
-            Request::GroupWaypoint { x, y },
-            Purpose::Waypoint {
-                phase: index,
-                index: next,
-            },
-        );
+        for car in cars {
+            self.enqueue(
+                car,
+                Request::GroupWaypoint { x, y },
+                Purpose::Waypoint {
+                    phase: index,
+                    index: next,
+                },
+            );
+        }
     }
 
     /// The progress line now.

@@ -6,7 +6,7 @@ use super::*;
 
 /// Slot offsets of a formation's followers, mm (forward, left), by car index.
 pub(super) fn slot_offsets(f: &FormationPhase, ids: &[u8]) -> Vec<Option<(f64, f64)>> {
-    let law = Formation::new(f.shape, f.leader, None, f.spacing_units, f.speed_mm_s);
+    let law = Formation::with(f.shape, f.leader, None, f.spacing_units, f.speed_mm_s);
     ids.iter()
         .map(|id| {
             f.followers.iter().position(|c| c == id).map(|k| {
@@ -17,9 +17,11 @@ pub(super) fn slot_offsets(f: &FormationPhase, ids: &[u8]) -> Vec<Option<(f64, f
         .collect()
 }
 
-/// The phase error at one instant (mm), from every car's true pose (`now[k]` = car `ids[k]`).
+/// The phase error at one instant (mm), from every car's true pose (`now[k]` = car `ids[k]`);
+/// `None` for the kinds judged by the cars' own reports (other laws, programs).
 pub(super) fn phase_error(phase: &Phase, ids: &[u8], now: &[Sample]) -> Option<f64> {
     match &phase.kind {
+        PhaseKind::Law(_) | PhaseKind::Program(_) => None,
         PhaseKind::Goto { .. } => ids
             .iter()
             .zip(now)
@@ -77,24 +79,77 @@ impl Runner<'_> {
                 .iter()
                 .enumerate()
                 .all(|(k, &id)| phase.goto_points(id).is_empty() || !self.cars[k].goto_running),
-            PhaseKind::Formation(f) => {
-                let leader_done = match f.waypoints.last() {
-                    None => true,
-                    Some(&last) => {
-                        a.waypoint_acked == f.waypoints.len()
-                            && self.car_index(f.leader).is_some_and(|k| {
-                                distance_to(&now[k], last) <= f64::from(f.reach_units) * MM_PER_UNIT
-                            })
-                    }
-                };
-                leader_done && err.is_some_and(|e| e <= phase.tolerance_mm)
+            PhaseKind::Formation(_) => {
+                self.waypoints_done(phase, a, now) && err.is_some_and(|e| e <= phase.tolerance_mm)
             }
+            PhaseKind::Law(_) => {
+                self.waypoints_done(phase, a, now)
+                    && self.all_reported_converged(phase)
+                    && err.is_some_and(|e| e <= phase.tolerance_mm)
+            }
+            PhaseKind::Program(_) => self
+                .ids
+                .iter()
+                .enumerate()
+                .all(|(k, &id)| !phase.runs_program(id) || !self.cars[k].goto_running),
             PhaseKind::Rendezvous { .. } => {
                 err.is_some_and(|e| e <= phase.tolerance_mm)
                     && now.iter().all(|s| s.v_mm_s.abs() < RENDEZVOUS_STILL_MM_S)
             }
             PhaseKind::Circle { .. } => err.is_some_and(|e| e <= phase.tolerance_mm),
         }
+    }
+
+    /// Every waypoint of the phase was sent and taken, and the first waypoint car is within
+    /// the reach distance of the last (true without waypoints).
+    fn waypoints_done(&self, phase: &Phase, a: &Active, now: &[Sample]) -> bool {
+        let Some(plan) = phase.waypoint_plan() else {
+            return true;
+        };
+        match (plan.waypoints.last(), plan.cars.first()) {
+            (Some(&last), Some(&car)) => {
+                a.waypoint_acked == plan.waypoints.len()
+                    && self.car_index(car).is_some_and(|k| {
+                        distance_to(&now[k], last) <= f64::from(plan.reach_units) * MM_PER_UNIT
+                    })
+            }
+            _ => true,
+        }
+    }
+
+    /// Every car of a group phase reported its law converged in a status asked after its
+    /// start was acknowledged.
+    fn all_reported_converged(&self, phase: &Phase) -> bool {
+        self.ids.iter().enumerate().all(|(k, &id)| {
+            let c = &self.cars[k];
+            if phase.params_for(id).is_none() {
+                return true;
+            }
+            match (c.status, c.status_sent, c.started_at) {
+                (Some(s), Some(sent), Some(started)) => sent >= started && s.group_converged,
+                _ => false,
+            }
+        })
+    }
+
+    /// The largest error the cars of a law phase report (mm), from statuses asked after
+    /// their starts were acknowledged; `None` until every car reported one.
+    fn reported_error(&self, phase: &Phase) -> Option<f64> {
+        let mut worst: Option<f64> = None;
+        for (k, &id) in self.ids.iter().enumerate() {
+            if phase.params_for(id).is_none() {
+                continue;
+            }
+            let c = &self.cars[k];
+            match (c.status, c.status_sent, c.started_at) {
+                (Some(s), Some(sent), Some(started)) if sent >= started => {
+                    let e = f64::from(s.group_error_units) * MM_PER_UNIT;
+                    worst = Some(worst.map_or(e, |w| w.max(e)));
+                }
+                _ => return None,
+            }
+        }
+        worst
     }
 
     /// Records one sample of the active phase; answers whether it is over (completed or
@@ -129,20 +184,14 @@ impl Runner<'_> {
         }
         let a = self.active.as_ref()?;
         let phase = &self.exp.phases[a.index];
-        let err = phase_error(phase, &self.ids, now);
+        let err = match phase.kind {
+            PhaseKind::Law(_) => self.reported_error(phase),
+            _ => phase_error(phase, &self.ids, now),
+        };
         let complete = self.complete_now(phase, a, now, err);
         // The cars' own convergence reports, from statuses asked after the start was
         // acknowledged.
-        let reported = self.ids.iter().enumerate().all(|(k, &id)| {
-            let c = &self.cars[k];
-            if phase.params_for(id).is_none() {
-                return true;
-            }
-            match (c.status, c.status_sent, c.started_at) {
-                (Some(s), Some(sent), Some(started)) => sent >= started && s.group_converged,
-                _ => false,
-            }
-        });
+        let reported = self.all_reported_converged(phase);
         let a = self.active.as_mut()?;
         if let Some(e) = err {
             a.errors.push((t, e));
@@ -157,7 +206,7 @@ impl Runner<'_> {
                 PhaseKind::Goto {
                     speed_mm_s: None,
                     ..
-                }
+                } | PhaseKind::Program(_)
             )
         {
             a.reported_converged_s = Some(t - a.start_s);
@@ -247,8 +296,8 @@ impl Runner<'_> {
             command_failures: a.command_failures,
             error_series: series,
         });
-        // Go-to maneuvers of an ended phase that did not finish count as missed.
-        if matches!(phase.kind, PhaseKind::Goto { .. }) {
+        // Go-to maneuvers and programs of an ended phase that did not finish count as missed.
+        if matches!(phase.kind, PhaseKind::Goto { .. } | PhaseKind::Program(_)) {
             for c in &mut self.cars {
                 if c.goto_running {
                     c.goto_running = false;

@@ -417,7 +417,13 @@ fn run_inner(
         source,
     })?;
     record::mark_incomplete(out)?;
-    let mut world = World::start(&exp.world_config(firmware))?;
+    let mut cfg = exp.world_config(firmware);
+    for (spec, own) in cfg.cars.iter_mut().zip(exp.car_firmware(exp.engine)?) {
+        if own.is_some() {
+            spec.firmware = own;
+        }
+    }
+    let mut world = World::start(&cfg)?;
     let mut log = EventLog::create(out, world.ids())?;
     let formats = recording::log_formats(&world);
     let mut rec = Recording::start(&mut world, &formats, out, exp, opts)

@@ -51,6 +51,20 @@ impl EngineKind {
             EngineKind::Qemu => firmware_elf(),
         }
     }
+
+    /// The board this engine's firmware is built for.
+    pub fn board(self) -> &'static str {
+        match self {
+            EngineKind::Iss => "softcore",
+            EngineKind::Qemu => "qemu_virt",
+        }
+    }
+
+    /// Program `name` (a firmware binary, `cargo xtask new-program`) built for this engine's
+    /// board.
+    pub fn program_firmware(self, name: &str) -> Result<PathBuf, qemu_harness::Error> {
+        qemu_harness::program_elf(self.board(), name)
+    }
 }
 
 /// One car of the world.

@@ -2,8 +2,9 @@
 //!
 //! A console request travels as a radio-mac command (authenticated by the ground station's
 //! key); the radio-mac tag says which request it is ([`Tag`]) and the payload starts with the
-//! format version [`VERSION`]. The car answers with a radio-mac reply carrying the same tag
-//! and a payload `[VERSION, result, body...]`. LBC commands and replies are carried as
+//! version of that request's layout: [`GROUP_VERSION`] for `GroupStart`, [`VERSION`] for every
+//! other request. The car answers with a radio-mac reply carrying the same tag and a payload
+//! `[VERSION, result, body...]`. LBC commands and replies are carried as
 //! complete LBC messages (header, packed data, checksum, terminator; seed 3.2) so that any
 //! tool speaking the LBC protocol can build and read them. Multi-byte integers are
 //! little-endian. The field tables are in `docs/ubc-app.md`.
@@ -11,15 +12,17 @@
 use heapless::Vec;
 use lbc_link::wire::{Frame, FrameError};
 use lbc_link::{Command, CommandKind, LbcMessage, Reply as LbcReply};
-use maneuvers::PARAMS_LEN;
 
 pub use super::camera::{BlobReport, CameraReport};
 
 /// The group maneuver parameters a [`Request::GroupStart`] carries.
 pub use maneuvers::ManeuverParams;
 
-/// Version byte opening every request and reply payload.
+/// Version byte opening every request (but `GroupStart`) and every reply payload.
 pub const VERSION: u8 = 1;
+/// Version byte of a `GroupStart` request: 2 since it carries a law ID of the registration
+/// list and that law's parameters (version 1 carried a 3-bit law selector and is refused).
+pub const GROUP_VERSION: u8 = 2;
 /// Largest console payload (radio-mac's `MAX_PAYLOAD`).
 pub const MAX_PAYLOAD: usize = radio_mac::MAX_PAYLOAD;
 /// Largest number of points in one go-to maneuver.
@@ -46,12 +49,16 @@ pub enum Tag {
     ManeuverStop = 0x05,
     /// One page of counters.
     Stats = 0x06,
-    /// Start a group maneuver (formation, rendezvous, circle, go-to, camera follow).
+    /// Start a group maneuver: any law of the registration list.
     GroupStart = 0x07,
-    /// Next waypoint of a formation leader.
+    /// Next waypoint of the running group maneuver's law.
     GroupWaypoint = 0x08,
     /// The latest camera detections and the camera-follow state.
     Camera = 0x09,
+    /// Start the firmware's own program loop (a program built from the template).
+    ProgramStart = 0x0A,
+    /// Stop it (and the car).
+    ProgramStop = 0x0B,
     /// Car to ground station: something the user should know (sent as a radio-mac request).
     Notice = 0x10,
 }
@@ -70,6 +77,8 @@ impl Tag {
             0x07 => Tag::GroupStart,
             0x08 => Tag::GroupWaypoint,
             0x09 => Tag::Camera,
+            0x0A => Tag::ProgramStart,
+            0x0B => Tag::ProgramStop,
             0x10 => Tag::Notice,
             _ => return None,
         })
@@ -147,10 +156,10 @@ pub enum Request {
     ManeuverStop,
     /// Report one [`StatsPage`].
     Stats(u8),
-    /// Run this group maneuver (replacing any running maneuver); the body is the 6-byte
-    /// [`ManeuverParams::encode`] form.
+    /// Run this group maneuver (replacing any running maneuver); the body is the
+    /// [`ManeuverParams::encode`] form (law ID, options, parameters).
     GroupStart(ManeuverParams),
-    /// Next waypoint of a formation leader, tracking units (X 0..=640, Y 0..=960).
+    /// Next waypoint of the running law, tracking units (X 0..=640, Y 0..=960).
     GroupWaypoint {
         /// X.
         x: u16,
@@ -163,6 +172,10 @@ pub enum Request {
         /// Index of the blob to include.
         blob: u8,
     },
+    /// Start the program loop with these arguments (their meaning is the program's).
+    ProgramStart(super::user::Args),
+    /// Stop the program loop and the car.
+    ProgramStop,
 }
 
 fn put(out: &mut [u8], at: usize, bytes: &[u8]) -> Result<(), EncodeError> {
@@ -187,10 +200,10 @@ fn u32_at(b: &[u8], at: usize) -> u32 {
         .map_or(0, |&w| u32::from_le_bytes(w))
 }
 
-fn body(payload: &[u8]) -> Result<&[u8], DecodeError> {
+fn body(payload: &[u8], version: u8) -> Result<&[u8], DecodeError> {
     match payload.split_first() {
         None => Err(DecodeError::Empty),
-        Some((&VERSION, rest)) => Ok(rest),
+        Some((&v, rest)) if v == version => Ok(rest),
         Some((&got, _)) => Err(DecodeError::UnsupportedVersion { got }),
     }
 }
@@ -218,6 +231,15 @@ fn lbc_frame(bytes: &[u8]) -> Result<(u8, &[u8]), DecodeError> {
     }
 }
 
+/// The version byte of requests with tag `t`.
+fn version_of(t: Tag) -> u8 {
+    if t == Tag::GroupStart {
+        GROUP_VERSION
+    } else {
+        VERSION
+    }
+}
+
 impl Request {
     /// The radio-mac tag.
     #[must_use]
@@ -232,12 +254,20 @@ impl Request {
             Request::GroupStart(_) => Tag::GroupStart,
             Request::GroupWaypoint { .. } => Tag::GroupWaypoint,
             Request::Camera { .. } => Tag::Camera,
+            Request::ProgramStart(_) => Tag::ProgramStart,
+            Request::ProgramStop => Tag::ProgramStop,
         }
+    }
+
+    /// The version byte of this request's layout.
+    #[must_use]
+    pub fn version(&self) -> u8 {
+        version_of(self.tag())
     }
 
     /// Writes the payload; returns its length.
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        put(out, 0, &[VERSION])?;
+        put(out, 0, &[self.version()])?;
         let len = match self {
             Request::Lbc(cmd) => {
                 let dst = out
@@ -245,7 +275,14 @@ impl Request {
                     .ok_or(EncodeError::BufferTooSmall { needed: 2 })?;
                 1 + cmd.emit(dst).map_err(EncodeError::Lbc)?
             }
-            Request::Status | Request::ManeuverStop => 1,
+            Request::Status | Request::ManeuverStop | Request::ProgramStop => 1,
+            Request::ProgramStart(args) => {
+                put(out, 1, &[args.len() as u8])?;
+                for (i, a) in args.iter().enumerate() {
+                    put(out, 2 + 2 * i, &a.to_le_bytes())?;
+                }
+                2 + 2 * args.len()
+            }
             Request::StreamFormat(bits) => {
                 put(out, 1, &bits.to_le_bytes())?;
                 5
@@ -263,8 +300,15 @@ impl Request {
                 2
             }
             Request::GroupStart(params) => {
-                put(out, 1, &params.encode().map_err(|_| EncodeError::Field)?)?;
-                1 + PARAMS_LEN
+                let dst = out
+                    .get_mut(1..)
+                    .ok_or(EncodeError::BufferTooSmall { needed: 2 })?;
+                1 + params.encode(dst).map_err(|e| match e {
+                    maneuvers::EncodeError::BufferTooSmall { needed } => {
+                        EncodeError::BufferTooSmall { needed: 1 + needed }
+                    }
+                    _ => EncodeError::Field,
+                })?
             }
             Request::GroupWaypoint { x, y } => {
                 if *x > 640 || *y > 960 {
@@ -284,7 +328,7 @@ impl Request {
     /// Reads a request from its radio-mac tag and payload.
     pub fn decode(tag: u8, payload: &[u8]) -> Result<Self, DecodeError> {
         let t = Tag::from_u8(tag).ok_or(DecodeError::UnknownTag { tag })?;
-        let b = body(payload)?;
+        let b = body(payload, version_of(t))?;
         Ok(match t {
             Tag::Lbc => {
                 let (header, data) = lbc_frame(b)?;
@@ -297,6 +341,27 @@ impl Request {
             Tag::ManeuverStop => {
                 expect_len(t, b, 0)?;
                 Request::ManeuverStop
+            }
+            Tag::ProgramStop => {
+                expect_len(t, b, 0)?;
+                Request::ProgramStop
+            }
+            Tag::ProgramStart => {
+                let n = usize::from(*b.first().ok_or(DecodeError::Length {
+                    tag,
+                    expected: 1,
+                    got: 0,
+                })?);
+                if n > super::user::MAX_ARGS {
+                    return Err(DecodeError::Field { tag, offset: 0 });
+                }
+                expect_len(t, b, 1 + 2 * n)?;
+                let mut args = super::user::Args::new();
+                for i in 0..n {
+                    // Cannot fail: n <= MAX_ARGS.
+                    let _ = args.push(u16_at(b, 1 + 2 * i) as i16);
+                }
+                Request::ProgramStart(args)
             }
             Tag::StreamFormat => {
                 expect_len(t, b, 4)?;
@@ -337,12 +402,9 @@ impl Request {
                 expect_len(t, b, 1)?;
                 Request::Camera { blob: b[0] }
             }
-            Tag::GroupStart => {
-                expect_len(t, b, PARAMS_LEN)?;
-                Request::GroupStart(
-                    ManeuverParams::decode(b).map_err(|e| DecodeError::Params { tag, error: e })?,
-                )
-            }
+            Tag::GroupStart => Request::GroupStart(
+                ManeuverParams::decode(b).map_err(|e| DecodeError::Params { tag, error: e })?,
+            ),
             Tag::GroupWaypoint => {
                 expect_len(t, b, 4)?;
                 let (x, y) = (u16_at(b, 0), u16_at(b, 2));
@@ -380,11 +442,15 @@ pub enum Refusal {
     NotAuthorized = 0x07,
     /// An argument is out of range (e.g. a stream format with NOT-IN-USE bits).
     BadArgument = 0x08,
-    /// A formation waypoint while no formation maneuver runs.
-    NoFormation = 0x09,
+    /// A group waypoint while no group maneuver runs.
+    NoGroup = 0x09,
     /// An LBC command that reads or writes the registers the car keeps to itself (the boot
     /// counter and the radio key, EEPROM 0x37..=0x3F).
     Protected = 0x0A,
+    /// A group maneuver whose law ID is not in this firmware's registration list.
+    UnknownLaw = 0x0B,
+    /// A program start to a firmware without a program loop (the stock firmware).
+    NoProgram = 0x0C,
 }
 
 impl Refusal {
@@ -398,8 +464,10 @@ impl Refusal {
             0x06 => Refusal::NotReady,
             0x07 => Refusal::NotAuthorized,
             0x08 => Refusal::BadArgument,
-            0x09 => Refusal::NoFormation,
+            0x09 => Refusal::NoGroup,
             0x0A => Refusal::Protected,
+            0x0B => Refusal::UnknownLaw,
+            0x0C => Refusal::NoProgram,
             _ => return None,
         })
     }
@@ -653,6 +721,10 @@ pub enum Reply {
     },
     /// The camera report.
     Camera(CameraReport),
+    /// The program loop started.
+    ProgramStarted,
+    /// The program loop stopped.
+    ProgramStopped,
 }
 
 const OK: u8 = 0x00;
@@ -694,7 +766,11 @@ impl Reply {
                 put(out, 2, &[*n])?;
                 (OK, 1)
             }
-            Reply::ManeuverStopped | Reply::GroupStarted | Reply::GroupWaypointSet => (OK, 0),
+            Reply::ManeuverStopped
+            | Reply::GroupStarted
+            | Reply::GroupWaypointSet
+            | Reply::ProgramStarted
+            | Reply::ProgramStopped => (OK, 0),
             Reply::Camera(report) => {
                 let dst = out
                     .get_mut(2..)
@@ -722,7 +798,7 @@ impl Reply {
 
     /// Reads the reply to a request with tag `tag`.
     pub fn decode(tag: u8, payload: &[u8]) -> Result<Self, DecodeError> {
-        let b = body(payload)?;
+        let b = body(payload, VERSION)?;
         let (&code, b) = b.split_first().ok_or(DecodeError::Length {
             tag,
             expected: 1,
@@ -775,11 +851,20 @@ impl Reply {
                 expect_len(t, b, 1)?;
                 Reply::ManeuverStarted(b[0])
             }
-            (Tag::ManeuverStop | Tag::GroupStart | Tag::GroupWaypoint, OK) => {
+            (
+                Tag::ManeuverStop
+                | Tag::GroupStart
+                | Tag::GroupWaypoint
+                | Tag::ProgramStart
+                | Tag::ProgramStop,
+                OK,
+            ) => {
                 expect_len(t, b, 0)?;
                 match t {
                     Tag::GroupStart => Reply::GroupStarted,
                     Tag::GroupWaypoint => Reply::GroupWaypointSet,
+                    Tag::ProgramStart => Reply::ProgramStarted,
+                    Tag::ProgramStop => Reply::ProgramStopped,
                     _ => Reply::ManeuverStopped,
                 }
             }
@@ -853,7 +938,7 @@ impl Notice {
     /// Reads a notice payload.
     pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
         let tag = Tag::Notice as u8;
-        let b = body(payload)?;
+        let b = body(payload, VERSION)?;
         expect_len(Tag::Notice, b, 2)?;
         let notice = match (b[0], b[1]) {
             (1, _) => Notice::LbcLost,
@@ -870,378 +955,4 @@ impl Notice {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use lbc_link::{Position, VehicleId};
-    use proptest::prelude::*;
-
-    fn req_bytes(r: &Request) -> ([u8; MAX_PAYLOAD], usize) {
-        let mut b = [0u8; MAX_PAYLOAD];
-        let n = r.encode(&mut b).unwrap();
-        (b, n)
-    }
-
-    #[test]
-    fn lbc_request_carries_the_lbc_message_verbatim() {
-        let r = Request::Lbc(Command::MoveXy(Position::new(320, 480).unwrap()));
-        let (b, n) = req_bytes(&r);
-        assert_eq!(&b[..n], &[1, 0xC1, 0x02, 0x40, 0x03, 0x60, 0x60, 0xFF]);
-        assert_eq!(Request::decode(0x01, &b[..n]).unwrap(), r);
-    }
-
-    #[test]
-    fn maneuver_request_layout() {
-        let mut pts = Points::new();
-        pts.push(Point { x: 320, y: 480 }).unwrap();
-        pts.push(Point { x: 0x102, y: 3 }).unwrap();
-        let r = Request::ManeuverStart(pts);
-        let (b, n) = req_bytes(&r);
-        assert_eq!(
-            &b[..n],
-            &[1, 2, 0x40, 0x01, 0xE0, 0x01, 0x02, 0x01, 0x03, 0x00]
-        );
-        assert_eq!(Request::decode(0x04, &b[..n]).unwrap(), r);
-    }
-
-    #[test]
-    fn bad_requests_are_typed_errors() {
-        assert_eq!(Request::decode(0x02, &[]), Err(DecodeError::Empty));
-        assert_eq!(
-            Request::decode(0x02, &[9]),
-            Err(DecodeError::UnsupportedVersion { got: 9 })
-        );
-        assert_eq!(
-            Request::decode(0x7E, &[1]),
-            Err(DecodeError::UnknownTag { tag: 0x7E })
-        );
-        assert_eq!(
-            Request::decode(0x02, &[1, 0]),
-            Err(DecodeError::Length {
-                tag: 2,
-                expected: 0,
-                got: 1
-            })
-        );
-        // Bad checksum inside the carried LBC message.
-        assert!(matches!(
-            Request::decode(0x01, &[1, 0xC1, 0x02, 0x40, 0x03, 0x60, 0x61, 0xFF]),
-            Err(DecodeError::LbcFrame(FrameError::ChecksumMismatch { .. }))
-        ));
-        // X beyond 640.
-        assert_eq!(
-            Request::decode(0x04, &[1, 1, 0x81, 0x02, 0, 0]),
-            Err(DecodeError::Field { tag: 4, offset: 1 })
-        );
-    }
-
-    #[test]
-    fn lbc_reply_vectors() {
-        let mut b = [0u8; MAX_PAYLOAD];
-        let r = Reply::Lbc(LbcOutcome::Answer(LbcReply::ReadId(
-            VehicleId::new(7).unwrap(),
-        )));
-        let n = r.encode(&mut b).unwrap();
-        assert_eq!(&b[..n], &[1, 0, 0xE8, 0x07, 0x6F, 0xFF]);
-        assert_eq!(Reply::decode(0x01, &b[..n]).unwrap(), r);
-
-        let r = Reply::Lbc(LbcOutcome::Rejected(CommandKind::MoveXy));
-        let n = r.encode(&mut b).unwrap();
-        assert_eq!(&b[..n], &[1, 0x10, 0x81]);
-        assert_eq!(Reply::decode(0x01, &b[..n]).unwrap(), r);
-
-        let r = Reply::Refused(Refusal::DriveDisabled);
-        let n = r.encode(&mut b).unwrap();
-        assert_eq!(&b[..n], &[1, 0x05]);
-        assert_eq!(Reply::decode(0x01, &b[..n]).unwrap(), r);
-    }
-
-    #[test]
-    fn group_request_vectors() {
-        let params = ManeuverParams::GoTo {
-            x: 300,
-            y: 600,
-            speed_mm_s: 200,
-        };
-        let r = Request::GroupStart(params);
-        let (b, n) = req_bytes(&r);
-        let mut expected = vec![1];
-        expected.extend_from_slice(&params.encode().unwrap());
-        assert_eq!(&b[..n], &expected[..]);
-        // kind 4 | x 300 << 3 | y 600 << 13 | speed 200 << 23
-        assert_eq!(&b[..n], &[1, 0x64, 0x09, 0x4B, 0x64, 0x00, 0x00]);
-        assert_eq!(Request::decode(0x07, &b[..n]).unwrap(), r);
-
-        let r = Request::GroupWaypoint { x: 0x140, y: 0x3C0 };
-        let (b, n) = req_bytes(&r);
-        assert_eq!(&b[..n], &[1, 0x40, 0x01, 0xC0, 0x03]);
-        assert_eq!(Request::decode(0x08, &b[..n]).unwrap(), r);
-
-        let mut o = [0u8; MAX_PAYLOAD];
-        let n = Reply::GroupStarted.encode(&mut o).unwrap();
-        assert_eq!(&o[..n], &[1, 0]);
-        assert_eq!(Reply::decode(0x07, &o[..n]).unwrap(), Reply::GroupStarted);
-        assert_eq!(
-            Reply::decode(0x08, &o[..n]).unwrap(),
-            Reply::GroupWaypointSet
-        );
-    }
-
-    #[test]
-    fn bad_group_requests_are_typed_errors() {
-        // Unknown law selector 6.
-        assert_eq!(
-            Request::decode(0x07, &[1, 6, 0, 0, 0, 0, 0]),
-            Err(DecodeError::Params {
-                tag: 7,
-                error: maneuvers::DecodeError::UnknownKind { kind: 6 }
-            })
-        );
-        assert_eq!(
-            Request::decode(0x07, &[1, 0, 0, 0, 0, 0]),
-            Err(DecodeError::Length {
-                tag: 7,
-                expected: 6,
-                got: 5
-            })
-        );
-        assert_eq!(
-            Request::decode(0x08, &[1, 0x81, 0x02, 0, 0]),
-            Err(DecodeError::Field { tag: 8, offset: 0 })
-        );
-        assert_eq!(
-            Request::decode(0x08, &[1, 0, 0, 0xC1, 0x03]),
-            Err(DecodeError::Field { tag: 8, offset: 2 })
-        );
-        assert_eq!(
-            Request::GroupWaypoint { x: 641, y: 0 }.encode(&mut [0u8; MAX_PAYLOAD]),
-            Err(EncodeError::Field)
-        );
-        assert_eq!(
-            Request::GroupStart(ManeuverParams::Rendezvous {
-                radius_units: 0,
-                speed_mm_s: 100
-            })
-            .encode(&mut [0u8; MAX_PAYLOAD]),
-            Err(EncodeError::Field)
-        );
-    }
-
-    #[test]
-    fn status_layout_keeps_old_fields_first() {
-        let s = Status {
-            phase: 2,
-            flags: 0x21,
-            car_id: 7,
-            x: 0x0102,
-            uptime_s: 0x0A0B,
-            group_kind: 4,
-            group_phase: 1,
-            group_converged: true,
-            group_error_units: 0x0304,
-            ..Status::default()
-        };
-        let mut o = [0u8; MAX_PAYLOAD];
-        let n = Reply::Status(s).encode(&mut o).unwrap();
-        assert_eq!(n, 2 + 29);
-        assert_eq!(&o[..6], &[1, 0, 2, 0x21, 7, 0x02]);
-        assert_eq!(&o[24..31], &[0x0B, 0x0A, 4, 1, 1, 0x04, 0x03]);
-        // A converged byte other than 0 or 1 is refused.
-        o[28] = 2;
-        assert_eq!(
-            Reply::decode(0x02, &o[..n]),
-            Err(DecodeError::Field { tag: 2, offset: 26 })
-        );
-    }
-
-    fn arb_params() -> impl Strategy<Value = ManeuverParams> {
-        prop_oneof![
-            Just(ManeuverParams::Idle),
-            (0u16..1024, 0u16..1024, 0u16..2048)
-                .prop_map(|(x, y, speed_mm_s)| ManeuverParams::GoTo { x, y, speed_mm_s }),
-            (1u16..512, 0u16..2048).prop_map(|(radius_units, speed_mm_s)| {
-                ManeuverParams::Rendezvous {
-                    radius_units,
-                    speed_mm_s,
-                }
-            }),
-            (0u16..1024, 0u16..1024, 1u16..512, -2048i16..2048).prop_map(
-                |(cx, cy, radius_units, speed_mm_s)| ManeuverParams::Circle {
-                    cx,
-                    cy,
-                    radius_units,
-                    speed_mm_s
-                }
-            ),
-            (
-                any::<bool>(),
-                1u8..=126,
-                proptest::option::of(0u8..15),
-                1u16..512,
-                0u16..2048
-            )
-                .prop_map(|(w, leader, slot, spacing_units, speed_mm_s)| {
-                    ManeuverParams::Formation {
-                        shape: if w {
-                            maneuvers::Shape::Wedge
-                        } else {
-                            maneuvers::Shape::Line
-                        },
-                        leader,
-                        slot,
-                        spacing_units,
-                        speed_mm_s,
-                    }
-                }),
-            (any::<u8>(), 1u16..512, 0u16..2048).prop_map(
-                |(marker, distance_units, speed_mm_s)| {
-                    ManeuverParams::CameraFollow {
-                        marker,
-                        distance_units,
-                        speed_mm_s,
-                    }
-                }
-            ),
-        ]
-    }
-
-    fn arb_status() -> impl Strategy<Value = Status> {
-        (
-            any::<[u8; 3]>(),
-            any::<[u16; 3]>(),
-            any::<[i16; 2]>(),
-            any::<[u8; 3]>(),
-            any::<[u16; 4]>(),
-            (any::<[u8; 2]>(), any::<bool>(), any::<u16>()),
-        )
-            .prop_map(|(a, b, c, d, e, g)| Status {
-                phase: a[0],
-                flags: a[1],
-                car_id: a[2],
-                x: b[0],
-                y: b[1],
-                heading_mrad: b[2],
-                steering_mrad: c[0],
-                velocity_mm_s: c[1],
-                temperature_c: d[0],
-                maneuver_index: d[1],
-                maneuver_len: d[2],
-                stream_age_ms: e[0],
-                bringups: e[1],
-                lbc_failures: e[2],
-                uptime_s: e[3],
-                group_kind: g.0[0],
-                group_phase: g.0[1],
-                group_converged: g.1,
-                group_error_units: g.2,
-            })
-    }
-
-    proptest! {
-        #[test]
-        fn status_round_trips(s in arb_status()) {
-            let mut b = [0u8; MAX_PAYLOAD];
-            let n = Reply::Status(s).encode(&mut b).unwrap();
-            prop_assert_eq!(Reply::decode(0x02, &b[..n]).unwrap(), Reply::Status(s));
-        }
-
-        #[test]
-        fn stats_round_trip(page in 0u8..4, vals in proptest::collection::vec(any::<u32>(), 0..=7)) {
-            let values: Vec<u32, STATS_PER_PAGE> = vals.iter().copied().collect();
-            let r = Reply::Stats { page, values };
-            let mut b = [0u8; MAX_PAYLOAD];
-            let n = r.encode(&mut b).unwrap();
-            prop_assert_eq!(Reply::decode(0x06, &b[..n]).unwrap(), r);
-        }
-
-        #[test]
-        fn maneuver_round_trips(pts in proptest::collection::vec((0u16..=640, 0u16..=960), 1..=7)) {
-            let points: Points = pts.iter().map(|&(x, y)| Point { x, y }).collect();
-            let r = Request::ManeuverStart(points);
-            let (b, n) = req_bytes(&r);
-            prop_assert_eq!(Request::decode(0x04, &b[..n]).unwrap(), r);
-        }
-
-        #[test]
-        fn group_requests_round_trip(p in arb_params(), x in 0u16..=640, y in 0u16..=960) {
-            for r in [Request::GroupStart(p), Request::GroupWaypoint { x, y }] {
-                let (b, n) = req_bytes(&r);
-                prop_assert_eq!(Request::decode(r.tag() as u8, &b[..n]).unwrap(), r);
-            }
-        }
-
-        #[test]
-        fn camera_requests_and_replies_round_trip(blob in any::<u8>(), seq in any::<u32>(), n in any::<u8>()) {
-            let r = Request::Camera { blob };
-            let mut out = [0u8; MAX_PAYLOAD];
-            let len = r.encode(&mut out).unwrap();
-            prop_assert_eq!(&out[..len], &[VERSION, blob][..]);
-            prop_assert_eq!(Request::decode(Tag::Camera as u8, &out[..len]), Ok(r));
-            let reply = Reply::Camera(CameraReport {
-                sequence: seq,
-                blobs: n,
-                leader_class: 2,
-                follow_state: 1,
-                leader_bearing_mrad: -12,
-                leader_range_mm: 640,
-                frames: seq.rotate_left(7) as u16,
-                blob: (n > 0).then_some((blob, BlobReport { class: 2, area: 1234, ..BlobReport::default() })),
-            });
-            let len = reply.encode(&mut out).unwrap();
-            prop_assert!(len <= MAX_PAYLOAD);
-            prop_assert_eq!(Reply::decode(Tag::Camera as u8, &out[..len]), Ok(reply));
-            prop_assert!(Reply::decode(Tag::Camera as u8, &out[..len - 1]).is_err());
-        }
-
-        #[test]
-        fn stream_format_round_trips(bits in any::<u32>()) {
-            let r = Request::StreamFormat(bits);
-            let (b, n) = req_bytes(&r);
-            prop_assert_eq!(Request::decode(0x03, &b[..n]).unwrap(), r);
-            let mut o = [0u8; MAX_PAYLOAD];
-            let n = Reply::StreamFormat(bits).encode(&mut o).unwrap();
-            prop_assert_eq!(Reply::decode(0x03, &o[..n]).unwrap(), Reply::StreamFormat(bits));
-        }
-
-        #[test]
-        fn lbc_requests_round_trip(x in 0u16..=640, y in 0u16..=960, p in 1u8..=12, v in -100i16..=100, led in 0u8..0x80) {
-            let pv = lbc_link::ParamValue::new(lbc_link::Param::from_number(p).unwrap(), v);
-            let led = lbc_link::LedPattern::from_bits(led).unwrap();
-            let mut cmds = vec![
-                Command::MoveXy(Position::new(x, y).unwrap()),
-                Command::WritLed { green: led, red: led },
-                Command::ReadPar(lbc_link::Param::from_number(p).unwrap()),
-            ];
-            if let Ok(pv) = pv {
-                cmds.push(Command::UpdPar(pv));
-            }
-            for c in cmds {
-                let r = Request::Lbc(c);
-                let (b, n) = req_bytes(&r);
-                prop_assert_eq!(Request::decode(0x01, &b[..n]).unwrap(), r);
-                if matches!(c, Command::ReadPar(_)) {
-                    continue; // answered with data, not an echo
-                }
-                let answer = Reply::Lbc(LbcOutcome::Answer(LbcReply::Echo(c)));
-                let mut o = [0u8; MAX_PAYLOAD];
-                let n = answer.encode(&mut o).unwrap();
-                prop_assert_eq!(Reply::decode(0x01, &o[..n]).unwrap(), answer);
-            }
-        }
-
-        #[test]
-        fn decoders_never_panic(tag in any::<u8>(), bytes in proptest::collection::vec(any::<u8>(), 0..40)) {
-            let _ = Request::decode(tag, &bytes);
-            let _ = Reply::decode(tag, &bytes);
-            let _ = Notice::decode(&bytes);
-        }
-
-        #[test]
-        fn notices_round_trip(code in 0u8..6, w in 0u8..4) {
-            let n = [Notice::LbcLost, Notice::LbcRecovered, Notice::Warnings(w),
-                     Notice::UserLinkLost, Notice::ManeuverDone, Notice::ManeuverAborted][usize::from(code)];
-            let mut b = [0u8; 4];
-            let len = n.encode(&mut b).unwrap();
-            prop_assert_eq!(Notice::decode(&b[..len]).unwrap(), n);
-        }
-    }
-}
+mod tests;

@@ -7,13 +7,14 @@
 //! meaningfully from the last one sent (another kind, another `MOVE_XY` point, or a steering
 //! or velocity change beyond [`STEER_STEP_MRAD`] / [`VELOCITY_STEP_MM_S`]), at most every
 //! [`MIN_INTERVAL_US`], and repeated every [`REFRESH_US`] otherwise. A change to `STOP` goes
-//! out at once. For a camera-follow maneuver the camera part of the program drives the car, so
-//! the group sends nothing and only reports.
+//! out at once. Any law of the registration list (`maneuvers::laws`) runs here; for a law that
+//! does not drive (the camera follow, carried out by the program's camera part) the group
+//! sends nothing and only reports.
 
 use lbc_link::{Command, Position, SteerVelocity, SteeringAngle, Velocity};
 use maneuvers::{
-    CarPose, Command as Motion, Controller, ControllerConfig, Inputs, ManeuverParams, Neighbour,
-    Status, MAX_NEIGHBOURS,
+    AnyLaw, CarPose, Command as Motion, Controller, ControllerConfig, Inputs, ManeuverParams,
+    Neighbour, Status, MAX_NEIGHBOURS,
 };
 use radio_mac::{Address, Mode, NeighbourTable, Role};
 
@@ -84,11 +85,36 @@ impl Gated for Motion {
     }
 }
 
+/// The cars in the radio neighbour table with a state, their poses and ages at `now_us`
+/// (at most [`MAX_NEIGHBOURS`]).
+pub fn neighbours<const N: usize>(
+    now_us: u64,
+    table: Option<&NeighbourTable<N>>,
+) -> heapless::Vec<Neighbour, MAX_NEIGHBOURS> {
+    let mut out = heapless::Vec::new();
+    for n in table.into_iter().flat_map(NeighbourTable::iter) {
+        let (Address::Car(car), Some((s, at))) = (n.addr, n.state) else {
+            continue;
+        };
+        let age = now_us.saturating_sub(at);
+        let _ = out.push(Neighbour {
+            id: car.get(),
+            pose: CarPose {
+                x: s.x,
+                y: s.y,
+                heading_mrad: s.heading_mrad,
+                velocity_mm_s: s.velocity_mm_s,
+            },
+            age_us: u32::try_from(age).unwrap_or(u32::MAX),
+        });
+    }
+    out
+}
+
 /// The group maneuver of this car.
 #[derive(Debug, Clone)]
 pub struct Group {
     controller: Controller,
-    params: ManeuverParams,
     status: Status,
     gate: SendGate<Motion>,
 }
@@ -97,7 +123,6 @@ impl Default for Group {
     fn default() -> Self {
         Self {
             controller: Controller::new(ControllerConfig::default()),
-            params: ManeuverParams::Idle,
             status: Status::default(),
             gate: SendGate::default(),
         }
@@ -146,29 +171,28 @@ pub fn lbc_command(m: Motion) -> Command {
 }
 
 impl Group {
-    /// Starts `params` (replacing the running maneuver); `Idle` stops.
+    /// Starts `params` (replacing the running maneuver); [`ManeuverParams::IDLE`] stops.
     pub fn start(&mut self, params: ManeuverParams) {
         self.controller.start(params);
-        self.params = params;
         self.status = Status::default();
         self.gate.reset();
     }
 
     /// Stops the maneuver (the caller stops the car).
     pub fn stop(&mut self) {
-        self.start(ManeuverParams::Idle);
+        self.start(ManeuverParams::IDLE);
     }
 
     /// True while a maneuver runs.
     #[must_use]
     pub fn active(&self) -> bool {
-        self.params != ManeuverParams::Idle
+        self.controller.law().is_some()
     }
 
-    /// The running maneuver's parameters (`Idle`: none).
+    /// The running law's ID (0: none).
     #[must_use]
-    pub fn params(&self) -> ManeuverParams {
-        self.params
+    pub fn law_id(&self) -> u8 {
+        self.controller.law().map_or(0, AnyLaw::id)
     }
 
     /// The controller's status after the last step.
@@ -177,24 +201,25 @@ impl Group {
         self.status
     }
 
-    /// Next waypoint of a formation leader; `false` when no formation runs.
-    pub fn set_waypoint(&mut self, x: u16, y: u16) -> bool {
-        if matches!(self.params, ManeuverParams::Formation { .. }) {
-            self.controller.set_waypoint(x, y);
-            true
-        } else {
-            false
-        }
+    /// The running law, if any.
+    #[must_use]
+    pub fn law(&self) -> Option<&AnyLaw> {
+        self.controller.law()
     }
 
-    /// Role and phase to broadcast: the formation's leader leads, every other car in a
-    /// maneuver follows.
+    /// Next waypoint of the running law; `false` when none runs.
+    pub fn set_waypoint(&mut self, x: u16, y: u16) -> bool {
+        self.controller.set_waypoint(x, y)
+    }
+
+    /// Role and phase to broadcast: the car the law says leads is the leader, every other car
+    /// in a maneuver follows.
     #[must_use]
     pub fn mode(&self, id: u8) -> Mode {
-        let role = match self.params {
-            ManeuverParams::Idle => Role::Idle,
-            ManeuverParams::Formation { leader, .. } if leader == id => Role::Leader,
-            _ => Role::Follower,
+        let role = match self.controller.law() {
+            None => Role::Idle,
+            Some(l) if l.leads(id) => Role::Leader,
+            Some(_) => Role::Follower,
         };
         Mode {
             role,
@@ -216,23 +241,7 @@ impl Group {
         if !self.active() {
             return None;
         }
-        let mut neighbours: heapless::Vec<Neighbour, MAX_NEIGHBOURS> = heapless::Vec::new();
-        for n in table.into_iter().flat_map(NeighbourTable::iter) {
-            let (Address::Car(car), Some((s, at))) = (n.addr, n.state) else {
-                continue;
-            };
-            let age = now_us.saturating_sub(at);
-            let _ = neighbours.push(Neighbour {
-                id: car.get(),
-                pose: CarPose {
-                    x: s.x,
-                    y: s.y,
-                    heading_mrad: s.heading_mrad,
-                    velocity_mm_s: s.velocity_mm_s,
-                },
-                age_us: u32::try_from(age).unwrap_or(u32::MAX),
-            });
-        }
+        let neighbours = neighbours(now_us, table);
         let out = self.controller.step(&Inputs {
             now_us,
             id,
@@ -240,8 +249,8 @@ impl Group {
             neighbours: &neighbours,
         });
         self.status = out.status;
-        if matches!(self.params, ManeuverParams::CameraFollow { .. }) {
-            // The camera part of the program drives the car; the controller only holds.
+        if !self.controller.law().is_some_and(AnyLaw::drives) {
+            // Another part of the program (the camera follow) drives the car.
             return None;
         }
         self.gate.offer(now_us, out.command, may_send)
@@ -280,11 +289,7 @@ mod tests {
     #[test]
     fn goto_commands_are_rate_limited_and_refreshed() {
         let mut g = Group::default();
-        g.start(ManeuverParams::GoTo {
-            x: 300,
-            y: 600,
-            speed_mm_s: 250,
-        });
+        g.start(maneuvers::GoTo::params(300, 600, 250).unwrap());
         let first = g.step(0, 1, pose(300, 400, 1571), TABLE, true);
         assert_eq!(
             first,
@@ -322,11 +327,7 @@ mod tests {
     #[test]
     fn arrival_stops_at_once() {
         let mut g = Group::default();
-        g.start(ManeuverParams::GoTo {
-            x: 300,
-            y: 600,
-            speed_mm_s: 250,
-        });
+        g.start(maneuvers::GoTo::params(300, 600, 250).unwrap());
         assert!(g.step(0, 1, pose(300, 590, 1571), TABLE, true).is_some());
         assert_eq!(
             g.step(10_000, 1, pose(300, 597, 1571), TABLE, true),
@@ -337,16 +338,12 @@ mod tests {
     }
 
     #[test]
-    fn waypoints_only_for_formations() {
+    fn waypoints_for_any_running_law() {
         let mut g = Group::default();
         assert!(!g.set_waypoint(10, 10));
-        g.start(ManeuverParams::Formation {
-            shape: maneuvers::Shape::Line,
-            leader: 3,
-            slot: None,
-            spacing_units: 60,
-            speed_mm_s: 100,
-        });
+        g.start(maneuvers::Rendezvous::params(60, 200).unwrap());
+        assert!(g.set_waypoint(10, 10));
+        g.start(maneuvers::Formation::params(maneuvers::Shape::Line, 3, None, 60, 100).unwrap());
         assert!(g.set_waypoint(300, 300));
         assert_eq!(g.mode(3).role, Role::Leader);
         assert_eq!(g.mode(4).role, Role::Follower);
@@ -366,11 +363,7 @@ mod tests {
     #[test]
     fn camera_follow_leaves_the_driving_to_the_camera() {
         let mut g = Group::default();
-        g.start(ManeuverParams::CameraFollow {
-            marker: 2,
-            distance_units: 80,
-            speed_mm_s: 150,
-        });
+        g.start(maneuvers::CameraFollow::params(2, 80, 150).unwrap());
         assert!(g.active());
         assert_eq!(g.step(0, 1, pose(100, 100, 0), TABLE, true), None);
         assert_eq!(g.step(2_000_000, 1, pose(100, 100, 0), TABLE, true), None);

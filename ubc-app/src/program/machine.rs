@@ -18,7 +18,9 @@ use super::console::{
 use super::group::{lbc_command, Group};
 use super::leds::LedState;
 use super::maneuver::Maneuver;
+use super::user::{NoProgram, UserProgram};
 use super::{BytePort, Clock, LogSink};
+use user_loop::UserState;
 
 /// Stream variables the program always asks for: position (1), steering and velocity (2),
 /// heading (4), chip status (15), target position (16), target steering and velocity (17).
@@ -32,6 +34,8 @@ const MAX_OWNED: usize = lbc_link::client::QUEUE_LEN + 1;
 const RADIO_TX: usize = 64;
 /// Milliseconds between retries of a write that did not fit in a UART.
 const TX_RETRY_US: u64 = 1_000;
+
+mod user_loop;
 
 /// Bring-up state (the `phase` of [`Status`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,10 +146,16 @@ pub enum LogEvent {
     ManeuverDone,
     /// The maneuver was aborted.
     ManeuverAborted,
-    /// A group maneuver started (law selector of `maneuvers::ManeuverParams::kind`).
+    /// A group maneuver started (the law's ID in the registration list).
     GroupStarted { kind: u8 },
     /// The group maneuver was stopped (request, link loss or a manual LBC command).
     GroupStopped,
+    /// The program loop started.
+    ProgramStarted,
+    /// The program loop finished (it returned `Done`).
+    ProgramDone,
+    /// The program loop was stopped before it finished.
+    ProgramStopped,
 }
 
 /// Program-level counters (statistics page 3).
@@ -206,6 +216,7 @@ pub struct Program {
     maneuver: Maneuver,
     group: Group,
     camera: Camera,
+    user: UserState,
     last_ground_us: Option<u64>,
     user_lost: bool,
     leds_sent: Option<(LedPattern, LedPattern)>,
@@ -268,6 +279,7 @@ impl Program {
             maneuver: Maneuver::default(),
             group: Group::default(),
             camera: Camera::default(),
+            user: UserState::default(),
             last_ground_us: None,
             user_lost: false,
             leds_sent: None,
@@ -366,7 +378,7 @@ impl Program {
             (v.battery_low, flags::BATTERY_LOW),
             (v.over_temperature, flags::OVER_TEMPERATURE),
             (
-                self.maneuver.active() || self.group.active(),
+                self.maneuver.active() || self.group.active() || self.user.running,
                 flags::MANEUVER,
             ),
             (self.lbc_error(now_us), flags::LBC_ERROR),
@@ -378,6 +390,7 @@ impl Program {
         }
         let (index, len) = match self.maneuver.state() {
             super::ManeuverState::Driving { index } => (index, self.maneuver.points().len() as u8),
+            _ if self.user.running => self.user.progress,
             _ => (0, 0),
         };
         let sat16 = |x: u64| u16::try_from(x).unwrap_or(u16::MAX);
@@ -398,7 +411,7 @@ impl Program {
             bringups: self.counters.bringups.min(0xFFFF) as u16,
             lbc_failures: self.lbc_failures.min(0xFFFF) as u16,
             uptime_s: (now_us.saturating_sub(self.started_us.unwrap_or(now_us)) / 1_000_000) as u16,
-            group_kind: self.group.params().kind(),
+            group_kind: self.group.law_id(),
             group_phase: g.phase.bits(),
             group_converged: g.converged,
             group_error_units: g.error_units,
@@ -424,6 +437,26 @@ impl Program {
         R: BytePort + ?Sized,
         S: LogSink + ?Sized,
     {
+        self.poll_with(clock, lbc, radio, log, &mut NoProgram);
+    }
+
+    /// [`Program::poll`] with a program loop ([`UserProgram`]), which runs once per new
+    /// STREAM sample while the ground station has it started.
+    pub fn poll_with<C, L, R, S, U>(
+        &mut self,
+        clock: &C,
+        lbc: &mut L,
+        radio: &mut R,
+        log: &mut S,
+        program: &mut U,
+    ) where
+        C: Clock + ?Sized,
+        L: BytePort + ?Sized,
+        R: BytePort + ?Sized,
+        S: LogSink + ?Sized,
+        U: UserProgram + ?Sized,
+    {
+        self.user.present = U::PRESENT;
         let now = clock.now_us();
         if self.started_us.is_none() {
             self.started_us = Some(now);
@@ -487,6 +520,9 @@ impl Program {
             self.on_radio(now, ev, log);
         }
         self.timers(now, log);
+        if U::PRESENT {
+            self.run_user(now, program, log);
+        }
         // Commands queued by the handlers above go out in this same poll.
         self.feed_lbc(now, &[], log);
         self.flush(lbc, radio);
@@ -889,6 +925,7 @@ impl Program {
         let id = self.mac.as_ref().map_or(0, |m| m.id().get());
         if s.position.is_some() && self.phase == Phase::Running && self.drive_enabled {
             self.step_group(now, id);
+            self.user.sample = true;
         }
         if let Some(m) = self.mac.as_mut() {
             let v = &self.vehicle;
@@ -950,6 +987,11 @@ impl Program {
             log.log(now, LogEvent::ManeuverAborted);
         }
         self.stop_group(now, log);
+        if self.user.running {
+            self.user.running = false;
+            self.user.stop = true;
+            log.log(now, LogEvent::ProgramStopped);
+        }
     }
 
     /// Stops a running group maneuver (the caller stops the car).
@@ -1112,6 +1154,10 @@ impl Program {
                 return Some(Refusal::UnsupportedVersion)
             }
             Err(console::DecodeError::UnknownTag { .. }) => return Some(Refusal::UnknownRequest),
+            Err(console::DecodeError::Params {
+                error: maneuvers::DecodeError::UnknownLaw { .. },
+                ..
+            }) => return Some(Refusal::UnknownLaw),
             Err(console::DecodeError::Params { .. }) => return Some(Refusal::BadArgument),
             Err(_) => return Some(Refusal::Malformed),
         };
@@ -1198,32 +1244,29 @@ impl Program {
                     return Some(Refusal::DriveDisabled);
                 }
                 self.stop_maneuvers(now, log);
-                if params == maneuvers::ManeuverParams::Idle {
+                if params.is_idle() {
                     let _ = self.send(now, Command::Stop, Owner::Stop);
                 } else {
                     self.group.start(params);
-                    if let maneuvers::ManeuverParams::CameraFollow {
-                        marker,
-                        distance_units,
-                        speed_mm_s,
-                    } = params
-                    {
-                        self.camera.start_follow(marker, distance_units, speed_mm_s);
+                    if let Some(maneuvers::AnyLaw::CameraFollow(c)) = self.group.law() {
+                        self.camera
+                            .start_follow(c.marker, c.distance_units, c.speed_mm_s);
                     }
-                    log.log(
-                        now,
-                        LogEvent::GroupStarted {
-                            kind: params.kind(),
-                        },
-                    );
+                    log.log(now, LogEvent::GroupStarted { kind: params.law() });
                 }
                 self.respond(id, Tag::GroupStart as u8, &Reply::GroupStarted);
             }
             Request::GroupWaypoint { x, y } => {
                 if !self.group.set_waypoint(x, y) {
-                    return Some(Refusal::NoFormation);
+                    return Some(Refusal::NoGroup);
                 }
                 self.respond(id, Tag::GroupWaypoint as u8, &Reply::GroupWaypointSet);
+            }
+            Request::ProgramStart(args) => return self.program_start(now, id, args, log),
+            Request::ProgramStop => {
+                self.stop_maneuvers(now, log);
+                let _ = self.send(now, Command::Stop, Owner::Stop);
+                self.respond(id, Tag::ProgramStop as u8, &Reply::ProgramStopped);
             }
         }
         None

@@ -14,6 +14,7 @@ pub mod group;
 mod leds;
 mod machine;
 mod maneuver;
+pub mod user;
 
 pub use config::{Config, DEFAULT_KEY};
 pub use leds::LedState;

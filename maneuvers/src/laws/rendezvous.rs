@@ -8,7 +8,9 @@
 //! measured times.
 
 use crate::geom::Vec2;
-use crate::{Guidance, Maneuver, Me, Neighbour, Phase, Plan, MM_PER_UNIT};
+use crate::law::{error_units, Guidance, Law, LawInput, Me, Plan};
+use crate::param::{Param, Values};
+use crate::{Neighbour, Phase, MM_PER_UNIT};
 
 /// Consensus gain, 1/s.
 pub const GAIN: f32 = 0.8;
@@ -27,9 +29,30 @@ pub struct Rendezvous {
     holding: bool,
 }
 
+impl Law for Rendezvous {
+    const NAME: &'static str = "rendezvous";
+    const SUMMARY: &'static str = "Rendezvous by consensus: every car drives towards the mean position of itself and its neighbours and holds once within the radius of it.";
+    const PARAMS: &'static [Param] = &[
+        Param::int("radius_units", "units", 1, 511)
+            .default(60)
+            .doc("arrival radius around the consensus point; at least 60 for 3 cars"),
+        Param::int("speed_mm_s", "mm/s", 0, 2047)
+            .default(200)
+            .doc("maximum speed"),
+    ];
+
+    fn new(p: &Values) -> Self {
+        Self::with(p.u16(0), p.u16(1))
+    }
+
+    fn step(&mut self, input: &LawInput<'_>) -> Plan {
+        self.plan(&input.me(), input.neighbours)
+    }
+}
+
 impl Rendezvous {
     /// Arrival radius in tracking units, maximum speed in mm/s.
-    pub fn new(radius_units: u16, speed_mm_s: u16) -> Self {
+    pub fn with(radius_units: u16, speed_mm_s: u16) -> Self {
         Self {
             radius: f32::from(radius_units),
             speed: f32::from(speed_mm_s),
@@ -46,9 +69,19 @@ impl Rendezvous {
         // At most a few dozen cars: the count converts exactly.
         sum * (1.0 / (fresh.len() as f32 + 1.0))
     }
-}
 
-impl Maneuver for Rendezvous {
+    /// The group command for this rendezvous.
+    pub fn params(
+        radius_units: u16,
+        speed_mm_s: u16,
+    ) -> Result<crate::ManeuverParams, crate::EncodeError> {
+        crate::ManeuverParams::new(
+            <Self as crate::registry::Registered>::ID,
+            &[i32::from(radius_units), i32::from(speed_mm_s)],
+        )
+    }
+
+    /// One period for car `me` with its fresh neighbours.
     fn plan(&mut self, me: &Me, fresh: &[Neighbour]) -> Plan {
         let c = Self::consensus(me, fresh);
         let err = c - me.pos;
@@ -68,18 +101,13 @@ impl Maneuver for Rendezvous {
         });
         self.holding = e <= limit || (blocked && e <= self.radius + BLOCK_UNITS);
         if self.holding {
-            return Plan {
-                guidance: Guidance::Hold,
-                phase: Phase::Hold,
-                converged: true,
-                error_units: e,
-            };
+            return Plan::hold(Phase::Hold, true, error_units(e));
         }
         Plan {
-            guidance: Guidance::Velocity((err * (GAIN * MM_PER_UNIT)).clamp_norm(self.speed)),
+            guidance: Guidance::VelocityF((err * (GAIN * MM_PER_UNIT)).clamp_norm(self.speed)),
             phase: Phase::Approach,
             converged: false,
-            error_units: e,
+            error_units: error_units(e),
         }
     }
 }
@@ -112,7 +140,7 @@ mod tests {
 
     #[test]
     fn moves_towards_the_mean() {
-        let mut r = Rendezvous::new(20, 200);
+        let mut r = Rendezvous::with(20, 200);
         let fresh = [n(2, 400, 100), n(3, 100, 400)];
         // Mean of (100,100), (400,100), (100,400) is (200,200).
         assert_eq!(
@@ -121,26 +149,26 @@ mod tests {
         );
         let p = r.plan(&me(100.0, 100.0), &fresh);
         match p.guidance {
-            Guidance::Velocity(v) => {
+            Guidance::VelocityF(v) => {
                 assert!((v.norm() - 200.0).abs() < 0.1, "saturated at the speed");
                 assert!((v.x - v.y).abs() < 0.1);
             }
             other => panic!("{other:?}"),
         }
-        assert!((p.error_units - 141.42).abs() < 0.1);
+        assert_eq!(p.error_units, 141);
     }
 
     #[test]
     fn proportional_inside_saturation() {
-        let mut r = Rendezvous::new(5, 1000);
+        let mut r = Rendezvous::with(5, 1000);
         let p = r.plan(&me(90.0, 100.0), &[n(2, 110, 100)]);
         // 10 units = 25 mm from the mean: 0.8/s * 25 mm = 20 mm/s.
-        assert_eq!(p.guidance, Guidance::Velocity(Vec2::new(20.0, 0.0)));
+        assert_eq!(p.guidance, Guidance::VelocityF(Vec2::new(20.0, 0.0)));
     }
 
     #[test]
     fn holds_within_radius_with_hysteresis() {
-        let mut r = Rendezvous::new(20, 200);
+        let mut r = Rendezvous::with(20, 200);
         let p = r.plan(&me(100.0, 100.0), &[n(2, 130, 100)]);
         assert!(p.converged && p.guidance == Guidance::Hold);
         // 22 units away: beyond the radius, within the hysteresis.
@@ -152,7 +180,7 @@ mod tests {
 
     #[test]
     fn holds_when_blocked_by_a_car_nearer_the_mean() {
-        let mut r = Rendezvous::new(20, 200);
+        let mut r = Rendezvous::with(20, 200);
         // Mean at (200, 100); a car at (180, 100) lies between me and it, 80 units away.
         let fresh = [n(2, 180, 100), n(3, 320, 100)];
         let p = r.plan(&me(100.0, 100.0), &fresh);
@@ -164,7 +192,7 @@ mod tests {
 
     #[test]
     fn alone_is_already_there() {
-        let mut r = Rendezvous::new(20, 200);
+        let mut r = Rendezvous::with(20, 200);
         assert!(r.plan(&me(300.0, 300.0), &[]).converged);
     }
 }

@@ -10,7 +10,9 @@
 use core::f32::consts::TAU;
 
 use crate::geom::{clampf, wrap, Vec2};
-use crate::{Guidance, Maneuver, Me, Neighbour, Phase, Plan, MM_PER_UNIT};
+use crate::law::{error_units, Guidance, Law, LawInput, Me, Plan, Waypoint};
+use crate::param::{Param, Values};
+use crate::{Neighbour, Phase, MM_PER_UNIT};
 
 /// Gain of the gap balance, 1/s (mm/s of extra speed per mm of gap difference).
 const GAP_GAIN: f32 = 0.6;
@@ -41,9 +43,31 @@ pub struct Gaps {
     pub count: usize,
 }
 
+impl Law for Circle {
+    const NAME: &'static str = "circle";
+    const SUMMARY: &'static str = "Even spacing on a rotating circle (cyclic-pursuit balance of the gaps ahead and behind); a waypoint moves the centre.";
+    const PARAMS: &'static [Param] = &[
+        Param::int("cx", "units", 0, 1023).doc("centre X"),
+        Param::int("cy", "units", 0, 1023).doc("centre Y"),
+        Param::int("radius_units", "units", 1, 511)
+            .doc("radius; at least 100 (the turning radius is 56 units)"),
+        Param::int("speed_mm_s", "mm/s", -2048, 2047)
+            .default(100)
+            .doc("speed along the circle, positive counter-clockwise; 0 holds once spread"),
+    ];
+
+    fn new(p: &Values) -> Self {
+        Self::with(p.u16(0), p.u16(1), p.u16(2), p.i16(3))
+    }
+
+    fn step(&mut self, input: &LawInput<'_>) -> Plan {
+        self.plan(&input.me(), input.neighbours, input.waypoint)
+    }
+}
+
 impl Circle {
     /// Centre and radius in tracking units, speed in mm/s (positive counter-clockwise).
-    pub fn new(cx: u16, cy: u16, radius_units: u16, speed_mm_s: i16) -> Self {
+    pub fn with(cx: u16, cy: u16, radius_units: u16, speed_mm_s: i16) -> Self {
         Self {
             centre: Vec2::new(f32::from(cx), f32::from(cy)),
             radius: f32::from(radius_units),
@@ -86,8 +110,31 @@ impl Circle {
     }
 }
 
-impl Maneuver for Circle {
-    fn plan(&mut self, me: &Me, fresh: &[Neighbour]) -> Plan {
+impl Circle {
+    /// The group command for this circle.
+    pub fn params(
+        cx: u16,
+        cy: u16,
+        radius_units: u16,
+        speed_mm_s: i16,
+    ) -> Result<crate::ManeuverParams, crate::EncodeError> {
+        crate::ManeuverParams::new(
+            <Self as crate::registry::Registered>::ID,
+            &[
+                i32::from(cx),
+                i32::from(cy),
+                i32::from(radius_units),
+                i32::from(speed_mm_s),
+            ],
+        )
+    }
+
+    /// One period for car `me` with its fresh neighbours; the latest waypoint, if any, is
+    /// the centre.
+    fn plan(&mut self, me: &Me, fresh: &[Neighbour], waypoint: Option<Waypoint>) -> Plan {
+        if let Some(w) = waypoint {
+            self.centre = Vec2::new(f32::from(w.x), f32::from(w.y));
+        }
         let rel = me.pos - self.centre;
         let rho = rel.norm();
         let radial = if rho > 1e-3 {
@@ -113,7 +160,7 @@ impl Maneuver for Circle {
             guidance: if converged && speed < 1.0 {
                 Guidance::Hold
             } else {
-                Guidance::Velocity(v)
+                Guidance::VelocityF(v)
             },
             phase: if converged {
                 Phase::Track
@@ -121,7 +168,7 @@ impl Maneuver for Circle {
                 Phase::Approach
             },
             converged,
-            error_units: err,
+            error_units: error_units(err),
         }
     }
 }
@@ -155,21 +202,21 @@ mod tests {
 
     #[test]
     fn gaps_to_neighbours() {
-        let c = Circle::new(300, 400, 100, 100);
+        let c = Circle::with(300, 400, 100, 100);
         // Me at angle 0; a neighbour at 90 degrees (ahead counter-clockwise), one at 180.
         let g = c.gaps(Vec2::new(400.0, 400.0), &[n(2, 300, 500), n(3, 200, 400)]);
         assert!((g.ahead - PI / 2.0).abs() < 1e-3, "{g:?}");
         assert!((g.behind - PI).abs() < 1e-3, "{g:?}");
         assert_eq!(g.count, 3);
         // Clockwise rotation swaps them.
-        let c = Circle::new(300, 400, 100, -100);
+        let c = Circle::with(300, 400, 100, -100);
         let g = c.gaps(Vec2::new(400.0, 400.0), &[n(2, 300, 500), n(3, 200, 400)]);
         assert!((g.ahead - PI).abs() < 1e-3 && (g.behind - PI / 2.0).abs() < 1e-3);
     }
 
     #[test]
     fn cars_far_off_the_circle_are_not_spaced_against() {
-        let c = Circle::new(300, 400, 100, 100);
+        let c = Circle::with(300, 400, 100, 100);
         let g = c.gaps(Vec2::new(400.0, 400.0), &[n(2, 330, 410), n(3, 200, 400)]);
         assert_eq!(g.count, 2);
         assert!((g.ahead - PI).abs() < 1e-3);
@@ -177,42 +224,42 @@ mod tests {
 
     #[test]
     fn on_circle_evenly_spaced_moves_tangentially() {
-        let mut c = Circle::new(300, 400, 100, 100);
-        let p = c.plan(&me(400.0, 400.0), &[n(2, 200, 400)]);
+        let mut c = Circle::with(300, 400, 100, 100);
+        let p = c.plan(&me(400.0, 400.0), &[n(2, 200, 400)], None);
         assert!(p.converged);
         match p.guidance {
-            Guidance::Velocity(v) => assert!((v.y - 100.0).abs() < 0.5 && v.x.abs() < 0.5),
+            Guidance::VelocityF(v) => assert!((v.y - 100.0).abs() < 0.5 && v.x.abs() < 0.5),
             other => panic!("{other:?}"),
         }
     }
 
     #[test]
     fn car_with_small_gap_ahead_slows_down() {
-        let mut c = Circle::new(300, 400, 100, 100);
+        let mut c = Circle::with(300, 400, 100, 100);
         // Neighbour 45 degrees ahead: gap ahead pi/4, behind 7pi/4 -> slow to zero.
-        let p = c.plan(&me(400.0, 400.0), &[n(2, 371, 471)]);
+        let p = c.plan(&me(400.0, 400.0), &[n(2, 371, 471)], None);
         assert!(!p.converged);
         match p.guidance {
-            Guidance::Velocity(v) => assert!(v.norm() < 1.0, "{v:?}"),
+            Guidance::VelocityF(v) => assert!(v.norm() < 1.0, "{v:?}"),
             other => panic!("{other:?}"),
         }
         // The other car sees the big gap ahead and speeds up.
-        let p = c.plan(&me(371.0, 471.0), &[n(1, 400, 400)]);
+        let p = c.plan(&me(371.0, 471.0), &[n(1, 400, 400)], None);
         match p.guidance {
-            Guidance::Velocity(v) => assert!(v.norm() > 150.0, "{v:?}"),
+            Guidance::VelocityF(v) => assert!(v.norm() > 150.0, "{v:?}"),
             other => panic!("{other:?}"),
         }
     }
 
     #[test]
     fn pulled_onto_radius() {
-        let mut c = Circle::new(300, 400, 100, 0);
-        let p = c.plan(&me(350.0, 400.0), &[]);
+        let mut c = Circle::with(300, 400, 100, 0);
+        let p = c.plan(&me(350.0, 400.0), &[], None);
         match p.guidance {
-            Guidance::Velocity(v) => assert!(v.x > 100.0 && v.y.abs() < 1.0, "{v:?}"),
+            Guidance::VelocityF(v) => assert!(v.x > 100.0 && v.y.abs() < 1.0, "{v:?}"),
             other => panic!("{other:?}"),
         }
         // On the radius, alone and not rotating: hold.
-        assert_eq!(c.plan(&me(400.0, 400.0), &[]).guidance, Guidance::Hold);
+        assert_eq!(c.plan(&me(400.0, 400.0), &[], None).guidance, Guidance::Hold);
     }
 }

@@ -1,8 +1,10 @@
-//! Board layer of the program: feeds the two UARTs' interrupt-driven rings and the CLINT time
-//! to [`ubc_app::program::Program`], runs the vision pipeline on each new camera frame (in
-//! place in the frame grabber's window) and hands the program its detections, logs its events
-//! through defmt and sleeps in WFI until the program's next deadline, a whole frame on either
-//! line, or the next look at the frame grabber.
+//! Board layer of the program (feature `firmware`): brings the board up, feeds the two UARTs'
+//! interrupt-driven rings and the CLINT time to [`crate::program::Program`] (with a program
+//! loop, [`crate::program::user::UserProgram`], when the binary has one), runs the vision
+//! pipeline on each new camera frame (in place in the frame grabber's window) and hands the
+//! program its detections, logs its events through defmt and sleeps in WFI until the
+//! program's next deadline, a whole frame on either line, or the next look at the frame
+//! grabber.
 //!
 //! The processor's time is the car's budget: the UARTs' interrupts move bytes into rings
 //! without waking the program, which runs when a frame from the LBC is complete, when a radio
@@ -10,9 +12,24 @@
 //! of a fleet at once; the serial driver stamps each with its arrival, so its time is exact
 //! however late it is read), when something is due, or when a ring fills up. A look at the
 //! frame grabber that finds nothing new costs two word reads.
+//!
+//! Every firmware binary is a few lines on top of this: `src/main.rs` (the stock program)
+//! and the programs in `src/bin/` (`cargo xtask new-program NAME`) call [`start`] from their
+//! entry point and [`panic`] from their panic handler.
 
-use crate::board::{self, Board, Camera, Clock, Uart};
-use ubc_app::program::{self, BytePort, Config, LogEvent, LogSink, Program};
+#[cfg(feature = "qemu_virt")]
+pub use ubc_hal::boards::qemu_virt as board;
+
+#[cfg(feature = "softcore")]
+pub use ubc_hal::boards::softcore as board;
+
+#[cfg(not(any(feature = "qemu_virt", feature = "softcore")))]
+compile_error!("select a board with a cargo feature, e.g. `--features qemu_virt`");
+
+use crate::program::user::UserProgram;
+use crate::program::{self, BytePort, Config, LogEvent, LogSink, Program};
+use board::{Board, Camera, Clock, Uart};
+use core::sync::atomic::{AtomicBool, Ordering};
 use ubc_hal::cpu;
 use vision::blobs::BlobDetector;
 use vision::colour::MARKER_CLASSES;
@@ -23,6 +40,7 @@ const STATS_PERIOD_US: u64 = 10_000_000;
 /// How often the frame grabber is looked at, in microseconds (the camera publishes at 15 to
 /// 30 frames per second and raises no interrupt).
 const CAMERA_POLL_US: u64 = 10_000;
+
 /// Bytes waiting in a receive ring that wake the program even without a whole frame (noise
 /// or a frame longer than any the protocols use), well before the ring fills.
 const RX_WAKE_BYTES: usize = 1024;
@@ -114,8 +132,80 @@ impl LogSink for Defmt {
                 defmt::info!("group maneuver started: kind {=u8}", kind)
             }
             LogEvent::GroupStopped => defmt::info!("group maneuver stopped"),
+            LogEvent::ProgramStarted => defmt::info!("program started"),
+            LogEvent::ProgramDone => defmt::info!("program done"),
+            LogEvent::ProgramStopped => defmt::info!("program stopped"),
         }
     }
+}
+
+/// Firmware version (the crate version).
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+/// Exit status reported when the firmware panics.
+pub const EXIT_PANIC: u16 = 1;
+/// Exit status reported when the board cannot be brought up.
+pub const EXIT_BOARD: u16 = 4;
+
+/// Takes the board and logs the banner (`ubc-app VERSION board=NAME timebase=HZ Hz`) and
+/// what is missing; ends the firmware with [`EXIT_BOARD`] when the board cannot be brought
+/// up.
+pub fn take_board() -> Board {
+    let board = match Board::take() {
+        Ok(board) => board,
+        Err(e) => {
+            defmt::error!("board bring-up failed: {}", e);
+            board::exit_device().fail(EXIT_BOARD)
+        }
+    };
+    defmt::info!(
+        "ubc-app {=str} board={=str} timebase={=u32} Hz",
+        VERSION,
+        board::NAME,
+        board.clock.hz()
+    );
+    #[cfg(feature = "qemu_virt")]
+    match (&board.radio, &board.radio_info) {
+        (Ok(_), Some(info)) => defmt::info!(
+            "radio uart: pci-serial at {=usize:#x} (slot {=u8}, pin {}, PLIC source {=u32})",
+            info.device.cpu_address,
+            info.device.bdf.device,
+            info.device.pin,
+            info.plic_source
+        ),
+        (Err(e), _) => defmt::warn!("radio uart unavailable: {}", e),
+        _ => {}
+    }
+    #[cfg(feature = "softcore")]
+    if let Err(e) = &board.radio {
+        defmt::warn!("radio uart unavailable: {}", e);
+    }
+    board
+}
+
+/// Brings the board up and runs the program, with `program` as its loop, forever.
+pub fn start<U: UserProgram>(mut program: U) -> ! {
+    run(take_board(), &mut program)
+}
+
+/// What a firmware's panic handler does: logs the message when it is plain text and the
+/// location (formatting a message with arguments would pull `core::fmt`, several KiB, into
+/// the image), then ends the firmware with [`EXIT_PANIC`].
+pub fn panic(info: &core::panic::PanicInfo) -> ! {
+    static PANICKING: AtomicBool = AtomicBool::new(false);
+    // A panic while reporting a panic (e.g. inside the logger) must not recurse.
+    if !PANICKING.swap(true, Ordering::AcqRel) {
+        let message = info.message().as_str().unwrap_or("(formatted message)");
+        match info.location() {
+            Some(l) => defmt::error!(
+                "panic: {=str} at {=str}:{=u32}",
+                message,
+                l.file(),
+                l.line()
+            ),
+            None => defmt::error!("panic: {=str}", message),
+        }
+    }
+    board::exit_device().fail(EXIT_PANIC)
 }
 
 /// Whether the LBC port holds a whole frame, or enough bytes to look at anyway.
@@ -140,8 +230,8 @@ fn radio_wait(port: Option<&mut Uart>, now_lo: u32, batch: u32) -> Option<u32> {
     Some(batch.saturating_sub(age))
 }
 
-/// Runs the program forever.
-pub fn run(board: Board) -> ! {
+/// Runs the program with its loop forever.
+fn run<U: UserProgram>(board: Board, user: &mut U) -> ! {
     let clock = board.clock;
     let mut lbc = board.lbc;
     lbc.stamp_frames(board::frame_stamping(lbc_link::header::TERMINATOR));
@@ -162,11 +252,12 @@ pub fn run(board: Board) -> ! {
         let mut now = clock.micros();
         let radio_now = radio_wait(radio.as_mut(), clock.ticks_lo(), batch) == Some(0);
         if radio_now || lbc_input(&lbc) || now >= program_due {
-            program.poll(
+            program.poll_with(
                 &BoardClock(&clock),
                 &mut Port(Some(&mut lbc), &clock),
                 &mut Port(radio.as_mut(), &clock),
                 &mut Defmt,
+                user,
             );
             now = clock.micros();
             program_due = program.poll_at(now);
