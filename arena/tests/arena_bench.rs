@@ -29,21 +29,24 @@ fn list(var: &str, default: &str) -> Vec<usize> {
         .collect()
 }
 
-/// `n` cars on a grid filling the arena, facing up.
+/// `n` cars on a grid filling the arena, facing up; 16 cars to a radio channel (one
+/// channel's state schedule has 16 slots).
 fn grid(n: usize) -> Vec<CarSpec> {
     let cols = (n as f64).sqrt().ceil() as usize;
     let rows = n.div_ceil(cols);
     (0..n)
         .map(|i| {
             let (c, r) = (i % cols, i / cols);
-            CarSpec::new(
+            let mut car = CarSpec::new(
                 u8::try_from(i + 1).unwrap_or(126),
                 Pose {
                     x_mm: 1500.0 * (c as f64 + 0.5) / cols as f64,
                     y_mm: 1000.0 * (r as f64 + 0.5) / rows as f64,
                     heading_rad: std::f64::consts::FRAC_PI_2,
                 },
-            )
+            );
+            car.radio_channel = u8::try_from(i / 16).unwrap_or(0);
+            car
         })
         .collect()
 }

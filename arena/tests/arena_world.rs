@@ -109,3 +109,74 @@ fn bad_worlds_are_refused() {
     cfg.quantum = Duration::ZERO;
     assert!(matches!(World::start(&cfg), Err(WorldError::BadQuantum(_))));
 }
+
+#[test]
+fn radio_channels_are_apart_and_each_has_its_ground_station() {
+    use arena::world::TapConfig;
+    use radio_mac::{Deframer, Frame};
+    let elf = EngineKind::Iss.default_firmware().expect("firmware ELF");
+    // Cars 1 and 2 on channel 0, cars 3 and 4 on channel 5.
+    let cars: Vec<CarSpec> = (1..=4u8)
+        .map(|id| {
+            let mut c = CarSpec::new(
+                id,
+                Pose {
+                    x_mm: 300.0 * f64::from(id),
+                    y_mm: 500.0,
+                    heading_rad: 0.0,
+                },
+            );
+            c.radio_channel = if id <= 2 { 0 } else { 5 };
+            c
+        })
+        .collect();
+    let mut cfg = WorldConfig::new(elf, cars);
+    let mut world = World::start(&cfg).expect("world starts");
+    assert_eq!(world.radio_channels(), [0, 5]);
+    let names: Vec<&str> = world
+        .node_counters()
+        .iter()
+        .map(|n| n.name.as_str())
+        .collect();
+    assert_eq!(names, ["ground", "car1", "car2", "car3", "car4", "ground5"]);
+    world.run_for(Duration::from_secs(3));
+    world.start_tap(TapConfig::default());
+    world.run_for(Duration::from_secs(2));
+    // The console reaches the cars of both channels through their own ground stations.
+    for id in 1..=4 {
+        match world.request(id, &Request::Status, Duration::from_secs(8)) {
+            Ok(Reply::Status(s)) => assert_eq!(s.car_id, id),
+            other => panic!("car {id}: {other:?}"),
+        }
+    }
+    let tap = world.take_tap();
+    let heard_from = |node: usize| -> Vec<u8> {
+        let mut d = Deframer::new();
+        let mut src: Vec<u8> = tap.radio[node]
+            .received
+            .iter()
+            .filter_map(|&(_, b)| match d.push(b) {
+                Some(Ok(Frame::State { src, .. })) => Some(src.get()),
+                _ => None,
+            })
+            .collect();
+        src.sort_unstable();
+        src.dedup();
+        src
+    };
+    // Each car hears only its channel's other car; each ground station only its channel.
+    assert_eq!(heard_from(1), [2]);
+    assert_eq!(heard_from(2), [1]);
+    assert_eq!(heard_from(3), [4]);
+    assert_eq!(heard_from(4), [3]);
+    assert_eq!(heard_from(0), [1, 2]);
+    assert_eq!(heard_from(5), [3, 4]);
+    let truth = world.truth();
+    assert!(truth.iter().all(|t| t.states_heard > 30), "{truth:?}");
+    // A channel above the highest is refused.
+    cfg.cars[0].radio_channel = 16;
+    assert!(matches!(
+        World::start(&cfg),
+        Err(WorldError::BadChannel { id: 1, channel: 16 })
+    ));
+}

@@ -281,6 +281,79 @@ pub struct Stats {
     pub ground_frames_kept: u32,
 }
 
+impl core::ops::AddAssign for Stats {
+    /// Counts of two endpoints together (e.g. the ground stations of several channels).
+    fn add_assign(&mut self, other: Self) {
+        // Exhaustive, so a new counter cannot be left out.
+        let Stats {
+            rx_frames,
+            rx_oversize,
+            rx_cobs,
+            rx_too_short,
+            rx_checksum,
+            rx_version,
+            rx_unknown_kind,
+            rx_malformed,
+            rx_own_address,
+            not_for_us,
+            duplicates,
+            replies_resent,
+            duplicates_pending,
+            too_old,
+            unexpected_replies,
+            group_duplicates,
+            neighbour_table_full,
+            event_overflow,
+            tx_queue_full,
+            retries,
+            failures,
+            auth_no_key,
+            auth_bad_mac,
+            auth_no_session,
+            hellos_sent,
+            sessions_opened,
+            sessions_refused,
+            auth_replay,
+            auth_repeat,
+            states_sent,
+            heartbeats_sent,
+            ground_frames_kept,
+        } = other;
+        self.rx_frames = self.rx_frames.wrapping_add(rx_frames);
+        self.rx_oversize = self.rx_oversize.wrapping_add(rx_oversize);
+        self.rx_cobs = self.rx_cobs.wrapping_add(rx_cobs);
+        self.rx_too_short = self.rx_too_short.wrapping_add(rx_too_short);
+        self.rx_checksum = self.rx_checksum.wrapping_add(rx_checksum);
+        self.rx_version = self.rx_version.wrapping_add(rx_version);
+        self.rx_unknown_kind = self.rx_unknown_kind.wrapping_add(rx_unknown_kind);
+        self.rx_malformed = self.rx_malformed.wrapping_add(rx_malformed);
+        self.rx_own_address = self.rx_own_address.wrapping_add(rx_own_address);
+        self.not_for_us = self.not_for_us.wrapping_add(not_for_us);
+        self.duplicates = self.duplicates.wrapping_add(duplicates);
+        self.replies_resent = self.replies_resent.wrapping_add(replies_resent);
+        self.duplicates_pending = self.duplicates_pending.wrapping_add(duplicates_pending);
+        self.too_old = self.too_old.wrapping_add(too_old);
+        self.unexpected_replies = self.unexpected_replies.wrapping_add(unexpected_replies);
+        self.group_duplicates = self.group_duplicates.wrapping_add(group_duplicates);
+        self.neighbour_table_full = self.neighbour_table_full.wrapping_add(neighbour_table_full);
+        self.event_overflow = self.event_overflow.wrapping_add(event_overflow);
+        self.tx_queue_full = self.tx_queue_full.wrapping_add(tx_queue_full);
+        self.retries = self.retries.wrapping_add(retries);
+        self.failures = self.failures.wrapping_add(failures);
+        self.auth_no_key = self.auth_no_key.wrapping_add(auth_no_key);
+        self.auth_bad_mac = self.auth_bad_mac.wrapping_add(auth_bad_mac);
+        self.auth_no_session = self.auth_no_session.wrapping_add(auth_no_session);
+        self.hellos_sent = self.hellos_sent.wrapping_add(hellos_sent);
+        self.sessions_opened = self.sessions_opened.wrapping_add(sessions_opened);
+        self.sessions_refused = self.sessions_refused.wrapping_add(sessions_refused);
+        self.auth_replay = self.auth_replay.wrapping_add(auth_replay);
+        self.auth_repeat = self.auth_repeat.wrapping_add(auth_repeat);
+        self.states_sent = self.states_sent.wrapping_add(states_sent);
+        self.heartbeats_sent = self.heartbeats_sent.wrapping_add(heartbeats_sent);
+        self.ground_frames_kept = self.ground_frames_kept.wrapping_add(ground_frames_kept);
+    }
+}
+
 #[derive(Debug, Clone)]
 enum PendingKind {
     Acked,

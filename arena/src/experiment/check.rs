@@ -380,6 +380,12 @@ impl Experiment {
             if c.x > 640 || c.y > 960 || c.heading_mrad > 6283 {
                 return Err(Invalid::StartPose { id: c.id });
             }
+            if c.radio_channel > crate::world::MAX_RADIO_CHANNEL {
+                return Err(Invalid::RadioChannel {
+                    id: c.id,
+                    channel: c.radio_channel,
+                });
+            }
         }
         if !name_is_safe(&raw.name) {
             return Err(Invalid::Name { name: raw.name });

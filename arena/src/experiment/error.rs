@@ -100,6 +100,13 @@ pub enum Invalid {
         /// The car.
         id: u8,
     },
+    /// A car's radio channel is above the highest one.
+    RadioChannel {
+        /// The car.
+        id: u8,
+        /// Its channel.
+        channel: u8,
+    },
     /// `duration_s` or `bringup_s` not positive and finite.
     Duration,
     /// `camera_fps` outside (0, 60].
@@ -238,6 +245,11 @@ impl fmt::Display for Invalid {
             Self::StartPose { id } => write!(
                 f,
                 "car {id}: start pose outside X 0..=640, Y 0..=960, heading 0..=6283"
+            ),
+            Self::RadioChannel { id, channel } => write!(
+                f,
+                "car {id}: radio_channel {channel} is outside 0..={}",
+                crate::world::MAX_RADIO_CHANNEL
             ),
             Self::Duration => write!(f, "`duration_s` and `bringup_s` must be positive"),
             Self::CameraFps { value } => {

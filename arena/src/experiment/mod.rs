@@ -119,6 +119,15 @@ pub struct CarEntry {
     /// the experiment file). Default: the engine's stock firmware.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub firmware: Option<String>,
+    /// The radio channel of the car's module, 0..=15 (default 0). Cars on different channels
+    /// neither hear nor disturb each other; each channel in use has its own ground station.
+    /// One channel's state schedule has 16 slots: put larger fleets on several channels.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub radio_channel: u8,
+}
+
+fn is_zero(v: &u8) -> bool {
+    *v == 0
 }
 
 /// What runs on a car.
@@ -523,14 +532,16 @@ impl Experiment {
             .cars
             .iter()
             .map(|c| {
-                CarSpec::new(
+                let mut spec = CarSpec::new(
                     c.id,
                     Pose {
                         x_mm: f64::from(c.x) * MM_PER_UNIT,
                         y_mm: f64::from(c.y) * MM_PER_UNIT,
                         heading_rad: f64::from(c.heading_mrad) / 1000.0,
                     },
-                )
+                );
+                spec.radio_channel = c.radio_channel;
+                spec
             })
             .collect();
         let mut cfg = WorldConfig::new(firmware, cars);

@@ -554,3 +554,18 @@ fn engine_threads_failure_policy_and_profiles_from_the_file() {
 }
 
 mod laws;
+
+#[test]
+fn radio_channels_per_car() {
+    let text = TWO.replacen("id = 2", "id = 2\nradio_channel = 3", 1);
+    let e = Experiment::parse(&text).unwrap();
+    let w = e.world_config(Path::new("/fw"));
+    assert_eq!(
+        w.cars.iter().map(|c| c.radio_channel).collect::<Vec<_>>(),
+        [0, 3]
+    );
+    let bad = TWO.replacen("id = 2", "id = 2\nradio_channel = 16", 1);
+    let err = invalid(&bad);
+    assert_eq!(err, Invalid::RadioChannel { id: 2, channel: 16 });
+    assert_eq!(err.to_string(), "car 2: radio_channel 16 is outside 0..=15");
+}

@@ -123,6 +123,34 @@ pub struct MediumStats {
     pub csma_drops: u64,
 }
 
+impl std::ops::AddAssign for MediumStats {
+    /// Counts of two channels together.
+    fn add_assign(&mut self, other: Self) {
+        let MediumStats {
+            packets_sent,
+            deliveries,
+            collisions,
+            half_duplex,
+            random_losses,
+            distance_losses,
+            rx_overflows,
+            tx_overflow_bytes,
+            csma_defers,
+            csma_drops,
+        } = other;
+        self.packets_sent += packets_sent;
+        self.deliveries += deliveries;
+        self.collisions += collisions;
+        self.half_duplex += half_duplex;
+        self.random_losses += random_losses;
+        self.distance_losses += distance_losses;
+        self.rx_overflows += rx_overflows;
+        self.tx_overflow_bytes += tx_overflow_bytes;
+        self.csma_defers += csma_defers;
+        self.csma_drops += csma_drops;
+    }
+}
+
 #[derive(Debug, Clone)]
 struct Transmission {
     src: usize,

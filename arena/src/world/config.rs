@@ -76,15 +76,23 @@ pub struct CarSpec {
     pub start: Pose,
     /// This car's firmware ELF, when it differs from [`WorldConfig::firmware`].
     pub firmware: Option<PathBuf>,
+    /// The radio channel the car's module is set to (0..=[`MAX_RADIO_CHANNEL`]): cars on
+    /// different channels neither hear nor disturb each other, and each channel in use has a
+    /// ground station of its own.
+    pub radio_channel: u8,
 }
 
+/// Highest radio channel number.
+pub const MAX_RADIO_CHANNEL: u8 = 15;
+
 impl CarSpec {
-    /// Car `id` at `start` with the world's firmware.
+    /// Car `id` at `start` with the world's firmware, on radio channel 0.
     pub fn new(id: u8, start: Pose) -> Self {
         CarSpec {
             id,
             start,
             firmware: None,
+            radio_channel: 0,
         }
     }
 }
@@ -181,6 +189,8 @@ impl WorldConfig {
 pub enum WorldError {
     /// No cars, a car ID outside 1..=126, or one ID twice.
     BadCar { id: u8 },
+    /// A car's radio channel is above [`MAX_RADIO_CHANNEL`].
+    BadChannel { id: u8, channel: u8 },
     /// A socket, file or directory of the run.
     Io(io::Error),
     /// The virtual-time engine could not start.
@@ -208,6 +218,10 @@ impl fmt::Display for WorldError {
             WorldError::BadCar { id } => {
                 write!(f, "car ID {id} is outside 1..=126 or appears twice")
             }
+            WorldError::BadChannel { id, channel } => write!(
+                f,
+                "car {id}: radio channel {channel} is outside 0..={MAX_RADIO_CHANNEL}"
+            ),
             WorldError::Io(e) => write!(f, "{e}"),
             WorldError::Iss(e) => write!(f, "{e}"),
             WorldError::Qemu(e) => write!(f, "{e}"),

@@ -1,7 +1,8 @@
 //! The world: N cars, each running the real UBC firmware on a car engine ([`crate::engine`]),
-//! each wired to its own emulated LBC (`lbc-emu`, which also moves the vehicle); one radio
-//! medium ([`RadioMedium`]) shared by every car's radio and the ground station; the overhead
-//! tracker; the synthetic camera feeding each car's frame grabber.
+//! each wired to its own emulated LBC (`lbc-emu`, which also moves the vehicle); a radio
+//! medium ([`RadioMedium`]) per radio channel in use, shared by the radios of the cars on that
+//! channel and a ground station; the overhead tracker; the synthetic camera feeding each
+//! car's frame grabber.
 //!
 //! The world owns time. It advances in fixed quanta of world time: every car runs to the end of
 //! the quantum with the bytes due to it, then the world feeds what the cars sent to the LBCs
@@ -15,12 +16,17 @@
 
 mod config;
 mod ground;
+mod radio;
+mod report;
 mod tap;
 mod tracker;
 
 mod truth;
 
-pub use config::{CarSpec, EngineKind, TrackingParams, WorldConfig, WorldError, DEFAULT_QUANTUM};
+pub use config::{
+    CarSpec, EngineKind, TrackingParams, WorldConfig, WorldError, DEFAULT_QUANTUM,
+    MAX_RADIO_CHANNEL,
+};
 pub use truth::{CarTruth, GroundCounters, NodeCounters, WorldEvent};
 
 pub use ground::PendingReply;
@@ -31,11 +37,11 @@ use crate::camera::{CarPose, SyntheticCamera};
 use crate::camera_feed::{ram_file_name, FeedStats, WindowPublisher, RUN_DIR_PREFIX};
 use crate::engine::iss::IssEngine;
 use crate::engine::qemu::QemuEngine;
-use crate::engine::{CarEngine, CarIo, CoreLoad, Nanos};
-use crate::radio_medium::{MediumStats, NodeId, RadioMedium};
-use ground::Ground;
+use crate::engine::{CarEngine, CarIo, Nanos};
+use crate::radio_medium::NodeId;
 use lbc_emu::{Lbc, LbcConfig, Pose};
 use qemu_harness::{SharedRam, SharedRamSpec};
+use radio::Channel;
 use radio_mac::CarId;
 use std::fmt;
 use std::io::{ErrorKind, Read, Write};
@@ -85,11 +91,13 @@ pub struct World {
     lbcs: Vec<Lbc>,
     io: Vec<CarIo>,
     ids: Vec<u8>,
+    /// Each car's node on its channel's medium.
     nodes: Vec<NodeId>,
     node_counters: Vec<NodeCounters>,
-    medium: RadioMedium,
-    ground_node: NodeId,
-    ground: Ground,
+    /// The radio channels in use (see [`radio`]); the first carries a person's link.
+    channels: Vec<Channel>,
+    /// Each car's index into `channels`.
+    channel_of: Vec<usize>,
     tracker: Tracker,
     camera: Option<Camera>,
     user: Option<UserLink>,
@@ -207,23 +215,20 @@ impl World {
                 Lbc::with_memory_eeprom(lc, c.id)
             })
             .collect();
-        let mut medium = RadioMedium::new(cfg.radio.clone(), cfg.seed);
-        let ground_node = medium.add_node((0.75, -0.2));
-        let mut node_counters = vec![NodeCounters {
-            name: "ground".into(),
-            ..NodeCounters::default()
-        }];
-        let nodes: Vec<NodeId> = cfg
-            .cars
-            .iter()
-            .map(|c| {
-                node_counters.push(NodeCounters {
-                    name: format!("car{}", c.id),
-                    ..NodeCounters::default()
+        for c in &cfg.cars {
+            if c.radio_channel > MAX_RADIO_CHANNEL {
+                return Err(WorldError::BadChannel {
+                    id: c.id,
+                    channel: c.radio_channel,
                 });
-                medium.add_node(metres(&c.start))
-            })
-            .collect();
+            }
+        }
+        let radio::Radio {
+            mut channels,
+            channel_of,
+            nodes,
+            counters: mut node_counters,
+        } = radio::channels(&cfg.cars, &ids, &cfg.radio, cfg.key, cfg.seed);
         let engine_is_wall_clock = engine.wall_clock();
         let paced = cfg.realtime || engine_is_wall_clock;
         let user = if paced {
@@ -237,7 +242,7 @@ impl World {
             Some(UserLink {
                 listener,
                 conn: None,
-                node: medium.add_node((0.75, -0.3)),
+                node: channels[0].medium.add_node((0.75, -0.3)),
             })
         } else {
             None
@@ -293,9 +298,8 @@ impl World {
             io: vec![CarIo::default(); n],
             nodes,
             node_counters,
-            medium,
-            ground_node,
-            ground: Ground::new(&ids, cfg.key, cfg.seed),
+            channels,
+            channel_of,
             tracker: Tracker::new(cfg.tracking, n, cfg.seed),
             camera,
             user,
@@ -378,7 +382,7 @@ impl World {
         self.note_failures();
         // The cars' radio bytes, and a person's, into the medium in time order (each byte
         // leaves the host's UART one byte time before its stop bit ends).
-        let byte_ns = self.medium.params().uart_byte_ns;
+        let byte_ns = self.channels[0].medium.params().uart_byte_ns;
         self.scratch.clear();
         for (k, io) in self.io.iter().enumerate() {
             for &(t, b) in &io.radio_out {
@@ -390,7 +394,9 @@ impl World {
         }
         self.scratch.sort_by_key(|&(t, k, _)| (t, k));
         for &(t, k, b) in &self.scratch {
-            self.medium.write(self.nodes[k], t, &[b]);
+            self.channels[self.channel_of[k]]
+                .medium
+                .write(self.nodes[k], t, &[b]);
             self.node_counters[k + 1].bytes_in += 1;
         }
         // The LBCs: what the cars sent, the tracker's fixes, then their own tasks to t1.
@@ -402,7 +408,8 @@ impl World {
         }
         if self.tracker.step(t1, &mut self.lbcs) {
             for (k, lbc) in self.lbcs.iter().enumerate() {
-                self.medium
+                self.channels[self.channel_of[k]]
+                    .medium
                     .set_position(self.nodes[k], metres(&lbc.vehicle().pose()));
             }
         }
@@ -425,30 +432,35 @@ impl World {
                 tap.lbc_out(k, &self.io[k].lbc_in[before..]);
             }
         }
-        // The medium to t1; bytes it has queued for the cars up to the next quantum's end.
-        self.medium.step(t1);
+        // The media to t1; bytes they have queued for the cars up to the next quantum's end.
+        for ch in &mut self.channels {
+            ch.medium.step(t1);
+        }
         let ahead = t1 + self.quantum;
         for (k, &node) in self.nodes.iter().enumerate() {
             let before = self.io[k].radio_in.len();
-            self.medium.take_rx(node, ahead, &mut self.io[k].radio_in);
+            self.channels[self.channel_of[k]]
+                .medium
+                .take_rx(node, ahead, &mut self.io[k].radio_in);
             self.node_counters[k + 1].bytes_out += (self.io[k].radio_in.len() - before) as u64;
             if let Some(tap) = self.tap.as_mut() {
                 tap.node(k + 1, &self.io[k].radio_in[before..], &[], t1);
             }
         }
-        // The ground station, and a person's ground station.
-        self.rx_scratch.clear();
-        self.medium
-            .take_rx(self.ground_node, t1, &mut self.rx_scratch);
-        let rx: Vec<u8> = self.rx_scratch.iter().map(|&(_, b)| b).collect();
-        self.node_counters[0].bytes_out += rx.len() as u64;
-        let tx = self.ground.step(t1, &rx, &mut self.events).to_vec();
-        if let Some(tap) = self.tap.as_mut() {
-            tap.node(0, &self.rx_scratch, &tx, t1);
-        }
-        if !tx.is_empty() {
-            self.medium.write(self.ground_node, t1, &tx);
-            self.node_counters[0].bytes_in += tx.len() as u64;
+        // The ground stations, and a person's ground station.
+        for ch in &mut self.channels {
+            self.rx_scratch.clear();
+            ch.medium.take_rx(ch.ground_node, t1, &mut self.rx_scratch);
+            let rx: Vec<u8> = self.rx_scratch.iter().map(|&(_, b)| b).collect();
+            self.node_counters[ch.counter].bytes_out += rx.len() as u64;
+            let tx = ch.ground.step(t1, &rx, &mut self.events).to_vec();
+            if let Some(tap) = self.tap.as_mut() {
+                tap.node(ch.counter, &self.rx_scratch, &tx, t1);
+            }
+            if !tx.is_empty() {
+                ch.medium.write(ch.ground_node, t1, &tx);
+                self.node_counters[ch.counter].bytes_in += tx.len() as u64;
+            }
         }
         self.serve_user(t1);
         self.now = t1;
@@ -549,7 +561,7 @@ impl World {
             }
         }
         let mut out = Vec::new();
-        self.medium.take_rx(u.node, now, &mut out);
+        self.channels[0].medium.take_rx(u.node, now, &mut out);
         let Some(s) = u.conn.as_mut() else {
             return;
         };
@@ -563,7 +575,7 @@ impl World {
                     break;
                 }
                 Ok(n) => {
-                    self.medium.write(u.node, now, &buf[..n]);
+                    self.channels[0].medium.write(u.node, now, &buf[..n]);
                     got += n as u64;
                     if let Some(tap) = self.tap.as_mut() {
                         tap.node(self.node_counters.len() - 1, &[], &buf[..n], now);
@@ -589,84 +601,6 @@ impl World {
         }
     }
 
-    /// The truth about every car, in configuration order.
-    pub fn truth(&self) -> Vec<CarTruth> {
-        self.lbcs
-            .iter()
-            .enumerate()
-            .map(|(k, l)| CarTruth {
-                id: self.ids[k],
-                pose: l.vehicle().pose(),
-                v_mm_s: l.vehicle().speed_mm_s(),
-                lbc: l.stats(),
-                lbc_faults: l.fault_stats(),
-                connected: !self.failed[k],
-                fixes_delivered: self.tracker.delivered[k],
-                fixes_dropped: self.tracker.dropped[k],
-                radio_state: self.ground.states[k].0,
-                states_heard: self.ground.states[k].1,
-                failure: self.engine.failure(k),
-            })
-            .collect()
-    }
-
-    /// Car `k`'s processor load (virtual-time engine).
-    pub fn core_load(&self, k: usize) -> Option<CoreLoad> {
-        self.engine.core_load(k)
-    }
-
-    /// Where car `id`'s processor spent its cycles so far, by function, largest first:
-    /// `(cycles, share, function)` (cars in [`WorldConfig::profile_cars`] on the virtual-time
-    /// engine).
-    pub fn profile(&self, id: u8) -> Option<Vec<(u64, f64, String)>> {
-        let k = self.ids.iter().position(|&i| i == id)?;
-        self.engine.profile(k)
-    }
-
-    /// Ends car `id`'s firmware now, as a crash would (the world then stops its vehicle,
-    /// unless told not to, and reports it). For tests and fault experiments.
-    pub fn kill_car(&mut self, id: u8, why: &str) {
-        if let Some(k) = self.ids.iter().position(|&i| i == id) {
-            self.engine.kill(k, why);
-        }
-    }
-
-    /// The camera's counters, if the world has a camera.
-    pub fn camera_stats(&self) -> Option<FeedStats> {
-        self.camera.as_ref().map(|c| c.stats)
-    }
-
-    /// Ground-station counters.
-    pub fn ground_counters(&self) -> GroundCounters {
-        self.ground.counters
-    }
-
-    /// Ground-station protocol counters.
-    pub fn ground_stats(&self) -> radio_mac::Stats {
-        self.ground.stats()
-    }
-
-    /// Radio medium counters.
-    pub fn medium_stats(&self) -> MediumStats {
-        *self.medium.stats()
-    }
-
-    /// Bytes through every radio node (ground first, then the cars, then `user`).
-    pub fn node_counters(&self) -> &[NodeCounters] {
-        &self.node_counters
-    }
-
-    /// Events recorded since the last call (LBC resets, notices, failures).
-    pub fn take_events(&mut self) -> Vec<WorldEvent> {
-        std::mem::take(&mut self.events)
-    }
-
-    /// The firmware log of car `id` (decoded defmt lines), if it is in the world.
-    pub fn firmware_log(&self, id: u8) -> Option<Vec<String>> {
-        let k = self.ids.iter().position(|&i| i == id)?;
-        Some(self.engine.firmware_log(k))
-    }
-
     /// Sends a console request to car `id` without waiting: `Ok(None)` when the ground
     /// station is busy with another request (it carries one authenticated command at a time;
     /// try again later), else the [`PendingReply`] to poll with [`World::poll_reply`].
@@ -675,12 +609,20 @@ impl World {
         id: u8,
         req: &Request,
     ) -> Result<Option<PendingReply>, WorldError> {
-        self.ground.try_request(self.now, id, req)
+        let k = self
+            .ids
+            .iter()
+            .position(|&i| i == id)
+            .ok_or(WorldError::BadCar { id })?;
+        self.channels[self.channel_of[k]]
+            .ground
+            .try_request(self.now, id, req)
     }
 
     /// The outcome of a request once it is known (given once).
     pub fn poll_reply(&mut self, p: &PendingReply) -> Option<Result<Reply, WorldError>> {
-        self.ground.poll(p)
+        let k = self.ids.iter().position(|&i| i == p.car())?;
+        self.channels[self.channel_of[k]].ground.poll(p)
     }
 
     /// Sends a console request to car `id` and runs the world until its reply, for at most

@@ -48,10 +48,29 @@ pub struct GroundCounters {
     pub notices: u64,
 }
 
+impl std::ops::AddAssign for GroundCounters {
+    /// Counts of two ground stations together (one per radio channel).
+    fn add_assign(&mut self, other: Self) {
+        let GroundCounters {
+            requests,
+            replies,
+            failed,
+            states_heard,
+            notices,
+        } = other;
+        self.requests += requests;
+        self.replies += replies;
+        self.failed += failed;
+        self.states_heard += states_heard;
+        self.notices += notices;
+    }
+}
+
 /// Bytes through one node's radio UART.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct NodeCounters {
-    /// Node name (`ground`, `car<ID>`, `user`).
+    /// Node name (`ground`, `car<ID>`, `ground<N>` for radio channel N after the first,
+    /// `user`).
     pub name: String,
     /// Bytes the node's host wrote to its radio.
     pub bytes_in: u64,
