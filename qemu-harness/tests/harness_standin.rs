@@ -60,6 +60,11 @@ fn standin_logs_echoes_exits_and_is_cleaned_up() {
         .wait_for_log(|l| l.level == Some(Level::Error), Duration::from_secs(5))
         .expect("error line");
     assert_eq!(bye.message, "standin exit requested");
+    // The log's reader sees the end of the stream on its own thread, shortly after the exit.
+    let t0 = std::time::Instant::now();
+    while !qemu.log().is_closed() && t0.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
     assert!(qemu.log().is_closed());
 
     drop(qemu);
