@@ -21,7 +21,11 @@ module uart16550 (
     input  wire        rx_valid,
     input  wire [7:0]  rx_data,
     output reg         tx_valid,
-    output reg  [7:0]  tx_data
+    output reg  [7:0]  tx_data,
+    // The transmitter's serial line (8N1, idle high), in step with the shifter above, and the
+    // divisor, for a line receiver in front of rx_valid/rx_data (FPGA builds).
+    output reg         txd,
+    output wire [15:0] divisor_out
 );
     reg [7:0] ier, lcr, mcr, scr, dll, dlm;
     reg       fifo_en;
@@ -47,6 +51,7 @@ module uart16550 (
 
     wire [4:0] trig_level = !fifo_en ? 5'd1 : rx_trig == 2'd0 ? 5'd1 : rx_trig == 2'd1 ? 5'd4 :
                             rx_trig == 2'd2 ? 5'd8 : 5'd14;
+    assign divisor_out = divisor;
     wire rx_timeout = rx_cnt != 5'd0 && idle_timer >= {char_clk, 2'b00};
 
     wire ip_ls   = ier[2] && overrun;
@@ -144,6 +149,33 @@ module uart16550 (
                 if (wstrb[0]) mcr <= wdata[7:0];
                 if (wstrb[3]) scr <= wdata[31:24];
             end
+        end
+    end
+
+    // Serial line: the bit in flight while the shifter holds a byte (start bit, eight data bits
+    // LSB first, stop bit; each 16 * divisor clocks), counted alongside `sh_timer`.
+    reg [19:0] bit_timer;
+    reg [3:0]  bit_idx;
+    always @(posedge clk) begin
+        if (rst) begin
+            txd <= 1'b1;
+            bit_idx <= 4'd0;
+            bit_timer <= 20'd0;
+        end else begin
+            if (tx_pop) begin
+                bit_idx <= 4'd0;
+                bit_timer <= {divisor, 4'd0} - 20'd1;
+            end else if (sh_busy) begin
+                if (bit_timer == 20'd0) begin
+                    bit_idx <= bit_idx + 4'd1;
+                    bit_timer <= {divisor, 4'd0} - 20'd1;
+                end else begin
+                    bit_timer <= bit_timer - 20'd1;
+                end
+            end
+            if (tx_pop) txd <= 1'b0;
+            else if (!sh_busy || sh_done) txd <= 1'b1;
+            else if (bit_timer == 20'd0) txd <= bit_idx >= 4'd8 ? 1'b1 : sh_data[bit_idx[2:0]];
         end
     end
 endmodule
