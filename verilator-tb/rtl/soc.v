@@ -80,7 +80,7 @@ module soc #(
     reg tb_meip_q;
     always @(posedge clk) tb_meip_q <= tb_meip;
 
-    rv_core core (
+    rv_core #(.FETCH_AW(RAM_AW)) core (
         .clk(clk), .rst(rst),
         .imem_addr(imem_addr), .imem_rdata(imem_rdata),
         .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
