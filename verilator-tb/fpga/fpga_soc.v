@@ -25,7 +25,8 @@ module fpga_soc #(
     input  wire       cam_href,
     input  wire       cam_vsync,
     input  wire [7:0] cam_d,
-    // heartbeat, program loaded, UART0 TX/RX, UART1 TX/RX activity, exit pass, exit fail
+    // heartbeat (toggled by camera frames too), program loaded, UART0 TX/RX, UART1 TX/RX
+    // activity, exit pass, exit fail
     output wire [7:0] leds
 );
     // ---------------------------------------------------------------- reset
@@ -59,13 +60,13 @@ module fpga_soc #(
     uart_rx_line rx1 (.clk(clk), .rst(soc_rst), .rxd(uart1_rxd), .divisor(div1),
                       .valid(rx1_valid), .data(rx1_data));
 
-    wire               fg_we;
+    wire [3:0]         fg_we;
     wire [FMEM_AW-1:0] fg_addr;
     wire [31:0]        fg_wdata;
-    wire [15:0]        frames;
+    wire               frame;
     frame_capture #(.AW(FMEM_AW)) camera (
         .clk(clk), .rst(soc_rst), .pclk(cam_pclk), .href(cam_href), .vsync(cam_vsync),
-        .d(cam_d), .we(fg_we), .addr(fg_addr), .wdata(fg_wdata), .frames(frames)
+        .d(cam_d), .we(fg_we), .addr(fg_addr), .wdata(fg_wdata), .frame(frame)
     );
 
     // ---------------------------------------------------------------- the SoC
@@ -96,31 +97,22 @@ module fpga_soc #(
     // ---------------------------------------------------------------- LEDs
     reg [23:0] beat = 24'd0;
     reg [1:0]  exit_led = 2'b00;
-    wire [3:0] act;
-    activity a0 (.clk(clk), .pulse(tx0_valid), .on(act[0]));
-    activity a1 (.clk(clk), .pulse(rx0_valid), .on(act[1]));
-    activity a2 (.clk(clk), .pulse(tx1_valid), .on(act[2]));
-    activity a3 (.clk(clk), .pulse(rx1_valid), .on(act[3]));
+    reg [3:0]  act = 4'd0;          // a byte went by in the last 2^19 .. 2^20 clocks
+    reg [3:0]  seen = 4'd0;
+    wire [3:0] pulse = {rx1_valid, tx1_valid, rx0_valid, tx0_valid};
     always @(posedge clk) begin
         beat <= beat + 24'd1;
         if (exit_valid) exit_led <= exit_value[15:0] == 16'h5555 ? 2'b01 : 2'b10;
+        if (beat[18:0] == 19'd0) begin
+            act <= seen | pulse;
+            seen <= pulse;
+        end else begin
+            seen <= seen | pulse;
+        end
     end
     assign leds = {exit_led[1], exit_led[0], act[3], act[2], act[1], act[0], !soc_rst,
-                   beat[23] ^ frames[0]};
+                   beat[23] ^ frame};
 endmodule
 
-// An LED that lights for 2^20 clocks (about 70 ms) after each pulse.
-module activity (
-    input  wire clk,
-    input  wire pulse,
-    output reg  on
-);
-    reg [19:0] timer = 20'd0;
-    always @(posedge clk) begin
-        if (pulse) timer <= 20'hf_ffff;
-        else if (timer != 20'd0) timer <= timer - 20'd1;
-        on <= timer != 20'd0;
-    end
-endmodule
 
 `default_nettype wire

@@ -1,8 +1,8 @@
 // Frame-grabber port for a parallel (DVP) camera: 8-bit pixel data qualified by HREF, a pixel
 // clock, and VSYNC between frames. The pins are synchronised to the SoC clock, so the pixel
-// clock must be at most a quarter of it. Bytes of a frame are packed little-endian into words
-// and written into the SoC's frame window from its start; VSYNC restarts at offset 0 and
-// counts frames in `frames`. A frame longer than the window wraps around.
+// clock must be at most a quarter of it. The bytes of a frame are written one by one into the
+// SoC's frame window from its start (little-endian: byte n at offset n); VSYNC restarts at
+// offset 0 and toggles `frame`. A frame longer than the window wraps around.
 `default_nettype none
 
 module frame_capture #(
@@ -14,17 +14,20 @@ module frame_capture #(
     input  wire          href,
     input  wire          vsync,
     input  wire [7:0]    d,
-    output reg           we,
-    output reg  [AW-1:0] addr,
-    output reg  [31:0]   wdata,
-    output reg  [15:0]   frames
+    output reg  [3:0]    we,             // byte lane
+    output wire [AW-1:0] addr,
+    output wire [31:0]   wdata,
+    output reg           frame
 );
     reg [2:0] pclk_s;
     reg [1:0] vsync_s, href_s;
-    reg [7:0] d_s1, d_s2;
-    reg [1:0] lane;
-    reg [AW-1:0] next;
+    reg [7:0] d_s1, d_s2, byte_q;
+    reg [AW+1:0] at;                    // byte offset of the next pixel byte
+    reg [AW-1:0] word_q;
+    // the data pins' sample taken right after the pixel clock's rising edge
     wire pclk_rise = pclk_s[2:1] == 2'b01;
+    assign addr = word_q;
+    assign wdata = {4{byte_q}};
 
     always @(posedge clk) begin
         pclk_s <= {pclk_s[1:0], pclk};
@@ -32,23 +35,18 @@ module frame_capture #(
         href_s <= {href_s[0], href};
         d_s1 <= d;
         d_s2 <= d_s1;
-        we <= 1'b0;
+        we <= 4'd0;
         if (rst) begin
-            lane <= 2'd0;
-            next <= {AW{1'b0}};
-            frames <= 16'd0;
+            at <= {(AW+2){1'b0}};
+            frame <= 1'b0;
         end else if (vsync_s[1]) begin
-            if (lane != 2'd0 || next != {AW{1'b0}}) frames <= frames + 16'd1;
-            lane <= 2'd0;
-            next <= {AW{1'b0}};
+            if (at != {(AW+2){1'b0}}) frame <= !frame;
+            at <= {(AW+2){1'b0}};
         end else if (pclk_rise && href_s[1]) begin
-            wdata[8*lane +: 8] <= d_s2;
-            lane <= lane + 2'd1;
-            if (lane == 2'd3) begin
-                we <= 1'b1;
-                addr <= next;
-                next <= next + {{(AW-1){1'b0}}, 1'b1};
-            end
+            we <= 4'b0001 << at[1:0];
+            word_q <= at[AW+1:2];
+            byte_q <= d_s2;
+            at <= at + {{(AW+1){1'b0}}, 1'b1};
         end
     end
 endmodule

@@ -5,7 +5,11 @@
 // soc_ram_spram.v). RAM: 64 KiB in the four SPRAMs; frame window 2 KiB of block RAM.
 `default_nettype none
 
-module top_icebreaker (
+module top_icebreaker #(
+    // 0: the SoC clock is the PLL's 14.8125 MHz; N > 0: divided by 2^N, for bring-up where
+    // timing is not met at the full rate (see docs/fpga.md)
+    parameter integer CLK_DIV_LOG2 = 0
+) (
     input  wire       clk_12m,      // pin 35
     input  wire       rx,           // FTDI channel B: UART0 (LBC link)
     output wire       tx,
@@ -22,7 +26,7 @@ module top_icebreaker (
     output wire       uart1_tx,     // PMOD1B: UART1 (radio)
     input  wire       uart1_rx
 );
-    wire clk_soc, locked;
+    wire clk_pll, locked;
     SB_PLL40_2F_PAD #(
         .FEEDBACK_PATH("SIMPLE"),
         .DIVR(4'd0),
@@ -34,15 +38,28 @@ module top_icebreaker (
     ) pll (
         .PACKAGEPIN(clk_12m),
         .PLLOUTGLOBALA(),
-        .PLLOUTGLOBALB(clk_soc),
+        .PLLOUTGLOBALB(clk_pll),
         .RESETB(1'b1),
         .BYPASS(1'b0),
         .LOCK(locked)
     );
 
+    // the SoC clock: the PLL's output, or a counter's top bit on a global buffer
+    wire soc_clk;
+    generate
+        if (CLK_DIV_LOG2 == 0) begin : full
+            assign soc_clk = clk_pll;
+        end else begin : divided
+            reg [CLK_DIV_LOG2-1:0] div = 0;
+            always @(posedge clk_pll) div <= div + 1'b1;
+            SB_GB gb (.USER_SIGNAL_TO_GLOBAL_BUFFER(div[CLK_DIV_LOG2-1]),
+                      .GLOBAL_BUFFER_OUTPUT(soc_clk));
+        end
+    endgenerate
+
     wire [7:0] leds;
     fpga_soc #(.RAM_AW(14), .FMEM_AW(9)) soc (
-        .clk(~clk_soc), .pll_locked(locked),
+        .clk(~soc_clk), .pll_locked(locked),
         .uart0_rxd(rx), .uart0_txd(tx), .uart1_rxd(uart1_rx), .uart1_txd(uart1_tx),
         .flash_sck(flash_sck), .flash_csn(flash_ssb), .flash_mosi(flash_io0),
         .flash_miso(flash_io1),

@@ -58,6 +58,15 @@ module rv_core #(
     output wire [3:0]  dmem_wstrb,
     output wire [31:0] dmem_wdata,
     input  wire [31:0] dmem_rdata,
+    // The instruction executing may read memory this cycle (from its decode alone, so it
+    // settles early; a cycle that writes memory never has it): for RAMs that must choose
+    // between a read and a write before the access is known to commit.
+    output wire        dmem_rd_pre,
+    // The last store into the fetch memory (FETCH_REGION), kept until the next one: a RAM
+    // with a write buffer holds that store (see fpga/soc_ram_spram.v).
+    output wire [FETCH_AW-1:0] last_st_word,
+    output wire [31:0] last_st_data,
+    output wire [3:0]  last_st_mask,
 
     input  wire        irq_software,
     input  wire        irq_timer,
@@ -430,6 +439,7 @@ module rv_core #(
     // an AMO stores in EX2 to the address it loaded from
     assign dmem_addr  = seq == S_EX2 ? {res_addr[31:2], 2'b00} : {ls_addr[31:2], 2'b00};
     assign dmem_re    = (commit_ex && mem_rd) || amo_a;
+    assign dmem_rd_pre = ex && mem_rd;
     assign dmem_rmask = mem_rd ? (is_load ? st_mask : 4'b1111) : 4'b0000;
     assign dmem_wstrb = (commit_ex && mem_wr) ? (is_store ? st_mask : 4'b1111) :
                         (in_ex2 && is_amo) ? 4'b1111 : 4'b0000;
@@ -473,7 +483,7 @@ module rv_core #(
     // word of a SYSTEM instruction (mepc for MRET/ECALL/EBREAK/WFI), or mtvec for TRAP.
     // The instruction word in `ir` as the memory holds it now: `ir_word` was read half a
     // cycle before this cycle began, so only a store that landed at this cycle's start edge
-    // (`st_*`) can have changed it. Each of its halfwords lies in word `pw` (at a word
+    // (`st_q`, with the last store in `st_*`) can have changed it. Each of its halfwords lies in word `pw` (at a word
     // boundary both do; otherwise the low one) or `pw + 1`.
     reg  [31:0] ir_word;
     reg         st_q;
@@ -490,6 +500,10 @@ module rv_core #(
     wire [31:0] refetch = {pm[3] ? pd[31:24] : ir_word[31:24], pm[2] ? pd[23:16] : ir_word[23:16],
                            pm[1] ? pd[15:8] : ir_word[15:8], pm[0] ? pd[7:0] : ir_word[7:0]};
     wire [31:0] fr = !rst && hold ? refetch : imem_rdata;
+    wire        st_now = !rst && dmem_wstrb != 4'd0 && dmem_addr[31:20] == FETCH_REGION;
+    assign last_st_word = st_w;
+    assign last_st_data = st_d;
+    assign last_st_mask = st_m;
     wire        fi_c = fr[1:0] != 2'b11;
     // RV32C expansion: each compressed instruction becomes the 32-bit one it stands for,
     // except for its immediate, which goes straight to `ir_imm` (the expanded word has zeros
@@ -579,10 +593,12 @@ module rv_core #(
         ir_imm <= fi_c ? immc : imm32;
         ir_raw <= fi_c ? {16'd0, c} : fr;
         ir_word <= fr;
-        st_q <= !rst && dmem_wstrb != 4'd0 && dmem_addr[31:20] == FETCH_REGION;
-        st_w <= dmem_addr[FETCH_AW+1:2];
-        st_m <= dmem_wstrb;
-        st_d <= dmem_wdata;
+        st_q <= st_now;
+        if (st_now) begin
+            st_w <= dmem_addr[FETCH_AW+1:2];
+            st_m <= dmem_wstrb;
+            st_d <= dmem_wdata;
+        end
         rf_a <= regs[port_a];
         rf_b <= regs[port_b];
         byp_a <= !rst && ((wb_en && wb_addr == port_a) || amo_a);

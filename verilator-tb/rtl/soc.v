@@ -23,8 +23,9 @@ module soc #(
     input  wire [17:0] bd_addr,
     input  wire [31:0] bd_wdata,
 
-    // Frame-grabber port (FG_PORT = 1): writes a word of the window at the rising edge.
-    input  wire        fg_we,
+    // Frame-grabber port (FG_PORT = 1): writes the byte lanes `fg_we` of a window word at the
+    // rising edge.
+    input  wire [3:0]  fg_we,
     input  wire [FMEM_AW-1:0] fg_addr,
     input  wire [31:0] fg_wdata,
 
@@ -71,7 +72,10 @@ module soc #(
     wire [31:0] imem_addr, imem_rdata;
     wire [31:0] dmem_addr, dmem_wdata;
     reg  [31:0] dmem_rdata;
-    wire        dmem_re;
+    wire        dmem_re, dmem_rd_pre;
+    wire [RAM_AW-1:0] st_word;
+    wire [31:0] st_data;
+    wire [3:0]  st_mask;
     wire [3:0]  dmem_rmask, dmem_wstrb;
     wire        msip, mtip, meip;
 
@@ -85,6 +89,8 @@ module soc #(
         .imem_addr(imem_addr), .imem_rdata(imem_rdata),
         .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
         .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
+        .dmem_rd_pre(dmem_rd_pre),
+        .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
         .irq_software(msip), .irq_timer(mtip), .irq_external(meip | tb_meip_q),
         .sleeping(core_sleeping),
         .rvfi_valid(rvfi_valid), .rvfi_order(rvfi_order), .rvfi_insn(rvfi_insn),
@@ -119,7 +125,9 @@ module soc #(
     soc_ram #(.AW(RAM_AW)) ram (
         .clk(clk),
         .i_half(imem_addr[RAM_AW+1:1]), .i_rdata(ram_idata),
-        .d_word(dmem_addr[RAM_AW+1:2]), .d_we(sel_ram && !rst ? dmem_wstrb : 4'd0),
+        .d_word(dmem_addr[RAM_AW+1:2]), .d_pre(dmem_rd_pre),
+        .st_word(st_word), .st_data(st_data), .st_mask(st_mask),
+        .d_we(sel_ram && !rst ? dmem_wstrb : 4'd0),
         .d_wdata(dmem_wdata), .d_rdata(ram_rdata),
         .bd_we(bd_we), .bd_addr(bd_addr[RAM_AW-1:0]), .bd_wdata(bd_wdata)
     );
@@ -140,7 +148,10 @@ module soc #(
     wire [31:0] fmem_rdata = FG_PORT != 0 ? fmem_q : fmem[fw];
     always @(posedge clk) begin
         if (FG_PORT != 0) begin
-            if (fg_we) fmem[fg_addr] <= fg_wdata;
+            if (fg_we[0]) fmem[fg_addr][7:0] <= fg_wdata[7:0];
+            if (fg_we[1]) fmem[fg_addr][15:8] <= fg_wdata[15:8];
+            if (fg_we[2]) fmem[fg_addr][23:16] <= fg_wdata[23:16];
+            if (fg_we[3]) fmem[fg_addr][31:24] <= fg_wdata[31:24];
         end else if (sel_fmem && !rst) begin
             if (dmem_wstrb[0]) fmem[fw][7:0] <= dmem_wdata[7:0];
             if (dmem_wstrb[1]) fmem[fw][15:8] <= dmem_wdata[15:8];

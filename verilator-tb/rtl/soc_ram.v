@@ -19,6 +19,10 @@ module soc_ram #(
     input  wire [AW:0]   i_half,       // fetch: halfword address (byte address bits AW+1:1)
     output wire [31:0]   i_rdata,      // ... the 32 bits from there, from the falling edge on
     input  wire [AW-1:0] d_word,       // data port: word address
+    input  wire          d_pre,        // the core may read this cycle (unused here)
+    input  wire [AW-1:0] st_word,      // the core's last store (unused here)
+    input  wire [31:0]   st_data,
+    input  wire [3:0]    st_mask,
     input  wire [3:0]    d_we,         // byte lanes written at the rising edge
     input  wire [31:0]   d_wdata,
     output wire [31:0]   d_rdata,      // read data, from the falling edge on
