@@ -1,10 +1,13 @@
 //! The program image the boards load from their SPI flash (the firmware does not fit their
 //! RAM; docs/fpga.md): it sets both UARTs to 115200 baud at the board's clock, runs a
-//! self-test (stores of every width over a buffer and loads of every width back, MUL, DIV,
-//! REM, shifts, an AMO, LR/SC and compressed instructions) folding everything into a 32-bit
+//! self-test (stores of every width over a buffer and loads of every width back, loads right
+//! after stores to the same word, MUL, DIV, REM, shifts, an AMO, LR/SC and compressed
+//! instructions) folding everything into a 32-bit
 //! checksum, prints a banner and the checksum on UART0, and then echoes: a byte received on
-//! UART0 goes back out on UART0 and UART1, one received on UART1 goes out on UART0. A `q` on
-//! UART0 writes the pass value to the exit register (an LED on the boards).
+//! UART0 goes back out on UART0 and UART1, one received on UART1 goes out on UART0. After a
+//! `c` on UART0 it also prints the first eight bytes of the frame window (two words in hex,
+//! then CR LF); a `q` on UART0 writes the pass value to the exit register (an LED on the
+//! boards).
 //!
 //! [`expected_checksum`] computes the self-test's result in Rust, so a test can hold the
 //! program, the cycle-accurate model and the boards' RTL against one value.
@@ -41,7 +44,11 @@ pub fn expected_checksum() -> u32 {
         let x = buf[i as usize];
         let y = (x >> 8) & 0xff; // lbu 4i+1
         let z = ((x >> 16) as u16 as i16) as i32 as u32; // lh 4i+2
-        s = s.wrapping_mul(31).wrapping_add(x).wrapping_add(y).wrapping_add(z);
+        s = s
+            .wrapping_mul(31)
+            .wrapping_add(x)
+            .wrapping_add(y)
+            .wrapping_add(z);
         s ^= s >> 7;
         s = s.wrapping_add(x / (i + 1)).wrapping_add(x % 7);
         s ^= s << 3;
@@ -54,6 +61,11 @@ pub fn expected_checksum() -> u32 {
     // lr.w t0, (buf); sc.w t1, s0, (buf): t1 = 0 (success); buf[0] = s
     s = s.wrapping_add(buf[0]);
     buf[0] = s;
+    // sw s, buf[1]; read back; sb into its byte 1; read back twice
+    buf[1] = s;
+    s = s.wrapping_add(buf[1]);
+    buf[1] = (buf[1] & !0x0000_ff00) | (s & 0xff) << 8;
+    s = s.wrapping_add(buf[1]) ^ (buf[1] << 1);
     // c.addi s0, 5; c.slli s0, 3; c.xor s0, s1 (s1 = buf[0] = s before the additions)
     let s1 = buf[0];
     s = s.wrapping_add(5) << 3;
@@ -185,6 +197,7 @@ pub fn program(board: Board, clock_div_log2: u32) -> Vec<u32> {
     let buf = RAM_BASE + board.ram_bytes() / 2;
     let (putc, puts, puthex) = (a.label(), a.label(), a.label());
     let (banner, st_text, main_loop, from1) = (a.label(), a.label(), a.label(), a.label());
+    let not_c = a.label();
 
     a.li(SP, ram_top);
     // both UARTs: DLAB, divisor, 8N1, FIFOs on and cleared
@@ -259,6 +272,16 @@ pub fn program(board: Board, clock_div_log2: u32) -> Vec<u32> {
         .i(isa::add(S0, S0, T0))
         .i(isa::sc_w(T1, S1_, S0))
         .i(isa::add(S0, S0, T1));
+    // loads right after stores to the same word (a buffered store read back)
+    a.i(isa::sw(S0, S1_, 4))
+        .i(isa::lw(T0, S1_, 4))
+        .i(isa::add(S0, S0, T0))
+        .i(isa::sb(S0, S1_, 5))
+        .i(isa::lw(T0, S1_, 4))
+        .i(isa::lw(T1, S1_, 4))
+        .i(isa::add(S0, S0, T0))
+        .i(isa::slli(T1, T1, 1))
+        .i(isa::xor(S0, S0, T1));
     // compressed: s1 <- buf[0] (c.lw), s0 += 5, s0 <<= 3, s0 ^= s1
     a.cc(c::lw(S1_, S1_, 0), c::addi(S0, 5))
         .cc(c::slli(S0, 3), c::xor(S0, S1_));
@@ -272,21 +295,42 @@ pub fn program(board: Board, clock_div_log2: u32) -> Vec<u32> {
     a.li(A0, u32::from(b'\n')).call(putc);
 
     // ---------------------------------------------------------------- echo
-    a.li(S1_, map::UART0).li(S2, map::UART1).li(S3, u32::from(b'q'));
+    a.li(S1_, map::UART0)
+        .li(S2, map::UART1)
+        .li(S3, u32::from(b'q'));
     a.bind(main_loop);
-    a.i(isa::lbu(T0, S1_, 5)).i(isa::andi(T0, T0, 1)).beqz(T0, from1);
+    a.i(isa::lbu(T0, S1_, 5))
+        .i(isa::andi(T0, T0, 1))
+        .beqz(T0, from1);
     a.i(isa::lbu(A0, S1_, 0))
         .i(isa::addi(A1, S1_, 0))
         .call(putc)
         .i(isa::addi(A1, S2, 0))
         .call(putc)
-        .bne(A0, S3, main_loop)
+        .li(T1, u32::from(b'c'))
+        .bne(A0, T1, not_c)
+        // `c`: the first eight bytes of the frame window, as two little-endian words
+        .li(A1, map::UART0)
+        .li(T3, map::FRAME_WINDOW)
+        .i(isa::lw(A0, T3, 0))
+        .call(puthex)
+        .i(isa::lw(A0, T3, 4))
+        .call(puthex)
+        .li(A0, u32::from(b'\r'))
+        .call(putc)
+        .li(A0, u32::from(b'\n'))
+        .call(putc)
+        .j(main_loop);
+    a.bind(not_c);
+    a.bne(A0, S3, main_loop)
         .li(T0, map::SIM_CTRL)
         .li(T1, 0x5555)
         .i(isa::sw(T1, T0, 0))
         .j(main_loop);
     a.bind(from1);
-    a.i(isa::lbu(T0, S2, 5)).i(isa::andi(T0, T0, 1)).beqz(T0, main_loop);
+    a.i(isa::lbu(T0, S2, 5))
+        .i(isa::andi(T0, T0, 1))
+        .beqz(T0, main_loop);
     a.i(isa::lbu(A0, S2, 0))
         .i(isa::addi(A1, S1_, 0))
         .call(putc)
@@ -369,6 +413,12 @@ pub fn expected_greeting(board: Board, clock_div_log2: u32) -> String {
     )
 }
 
+/// What the program prints after a `c` when the frame window starts with `bytes`.
+pub fn frame_hex(bytes: &[u8; 8]) -> String {
+    let w = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+    format!("{:08x}{:08x}\r\n", w(0), w(4))
+}
+
 /// The program as little-endian bytes (the flash image).
 pub fn image(board: Board, clock_div_log2: u32) -> Vec<u8> {
     program(board, clock_div_log2)
@@ -382,17 +432,20 @@ mod tests {
     use super::*;
     use soc_model::{Halt, Output, Port, Soc, Stamped};
 
+    const FRAME: [u8; 8] = [0x11, 0x22, 0x33, 0x44, 0xa5, 0x5a, 0x00, 0xff];
+
     fn run(board: Board, input: &[u8]) -> (String, String, Option<Halt>) {
         let words = program(board, 0);
         let mut m = Soc::new();
         m.load_words(RAM_BASE, &words).unwrap();
+        m.write_frame_window(0, &FRAME).unwrap();
         // one character time at divisor 8: 10 bits of 16 * 8 clocks
         let char_clocks = 1280;
         for (k, b) in input.iter().enumerate() {
-            m.send_at(Port::Lbc, 400_000 + k as u64 * 2 * char_clocks, &[*b]);
+            m.send_at(Port::Lbc, 400_000 + k as u64 * 40 * char_clocks, &[*b]);
         }
         let mut out: Vec<Stamped> = Vec::new();
-        let halt = m.run_until(2_000_000, &mut out);
+        let halt = m.run_until(4_000_000, &mut out);
         let text = |port: Port| -> String {
             out.iter()
                 .filter_map(|s| match s.output {
@@ -409,13 +462,13 @@ mod tests {
         for board in Board::ALL {
             assert!(program(board, 0).len() * 4 < board.ram_bytes() as usize / 2);
             // the run ends with the exit write, before the echoed `q` has left the UARTs
-            let (uart0, uart1, halt) = run(board, b"hi q");
+            let (uart0, uart1, halt) = run(board, b"hi cq");
             assert_eq!(
                 uart0,
-                format!("{}hi ", expected_greeting(board, 0)),
+                format!("{}hi c{}", expected_greeting(board, 0), frame_hex(&FRAME)),
                 "{board}"
             );
-            assert_eq!(uart1, "hi ");
+            assert_eq!(uart1, "hi c");
             assert_eq!(halt, Some(Halt::Exit { value: 0x5555 }));
         }
     }

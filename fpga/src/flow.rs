@@ -144,7 +144,12 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
     let ylog = dir.join("yosys.log");
     run_logged(
         "yosys",
-        Command::new("yosys").arg("-q").arg("-l").arg(&ylog).arg("-s").arg(&ys),
+        Command::new("yosys")
+            .arg("-q")
+            .arg("-l")
+            .arg(&ylog)
+            .arg("-s")
+            .arg(&ys),
         &dir.join("yosys.out"),
     )?;
     let ytext = fs::read_to_string(&ylog).map_err(io_err(format!("reading {}", ylog.display())))?;
@@ -155,10 +160,7 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
     let mut pins = fs::read_to_string(target.pcf(sources))
         .map_err(io_err(format!("reading {}", target.pcf(sources).display())))?;
     if target.design == Design::Soc && target.clock_div_log2 > 0 {
-        pins.push_str(&format!(
-            "set_frequency soc_clk {}\n",
-            target.clock_mhz()
-        ));
+        pins.push_str(&format!("set_frequency soc_clk {}\n", target.clock_mhz()));
     }
     fs::write(&pcf, pins).map_err(io_err(format!("writing {}", pcf.display())))?;
     let asc = dir.join("design.asc");
@@ -251,7 +253,10 @@ fn run_logged(tool: &'static str, cmd: &mut Command, log: &Path) -> Result<(), F
         .map_err(io_err(format!("starting {tool}")))?;
     let start = Instant::now();
     loop {
-        match child.try_wait().map_err(io_err(format!("waiting for {tool}")))? {
+        match child
+            .try_wait()
+            .map_err(io_err(format!("waiting for {tool}")))?
+        {
             Some(status) if status.success() => return Ok(()),
             Some(status) => {
                 return Err(FlowError::Tool {

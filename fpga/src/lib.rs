@@ -41,7 +41,13 @@ pub fn summary(o: &Outcome) -> String {
     }
     match (&o.placed, &o.failure) {
         (Some(p), _) => {
-            for kind in ["ICESTORM_RAM", "ICESTORM_SPRAM", "ICESTORM_DSP", "SB_IO", "SB_GB"] {
+            for kind in [
+                "ICESTORM_RAM",
+                "ICESTORM_SPRAM",
+                "ICESTORM_DSP",
+                "SB_IO",
+                "SB_GB",
+            ] {
                 if let Some(u) = p.utilization.get(kind) {
                     s.push_str(&format!("  {kind}: {}\n", u.describe()));
                 }

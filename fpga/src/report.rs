@@ -38,8 +38,7 @@ impl Cells {
         let mut cells = Cells::default();
         for line in log[start..].lines().skip(1) {
             let mut words = line.split_whitespace();
-            let (Some(name), Some(count), None) = (words.next(), words.next(), words.next())
-            else {
+            let (Some(name), Some(count), None) = (words.next(), words.next(), words.next()) else {
                 if line.trim().is_empty() {
                     continue;
                 }
@@ -179,7 +178,8 @@ impl Timing {
             for end in ["posedge", "negedge"] {
                 let from_clock = |s: &str| edge_of(s) == Some((start, clock));
                 let to_clock = |s: &str| edge_of(s) == Some((end, clock));
-                let (Some(into), Some(out)) = (worst(&from_clock, &is_dsp), worst(&is_dsp, &to_clock))
+                let (Some(into), Some(out)) =
+                    (worst(&from_clock, &is_dsp), worst(&is_dsp, &to_clock))
                 else {
                     continue;
                 };

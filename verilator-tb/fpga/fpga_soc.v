@@ -30,15 +30,19 @@ module fpga_soc #(
     output wire [7:0] leds
 );
     // ---------------------------------------------------------------- reset
+    // The core leaves reset two clocks after the loader's last word: the clock in between
+    // fetches the first instruction (on UltraPlus a SPRAM write takes the place of a read).
     reg [7:0] por = 8'd0;
     reg       sys_rst = 1'b1;
     reg       soc_rst = 1'b1;
+    reg       loaded_q = 1'b0;
     wire      loaded;
     always @(posedge clk) begin
         if (!pll_locked) por <= 8'd0;
         else if (por != 8'hff) por <= por + 8'd1;
         sys_rst <= por != 8'hff;
-        soc_rst <= sys_rst || !loaded;
+        loaded_q <= loaded && !sys_rst;
+        soc_rst <= sys_rst || !loaded_q;
     end
 
     // ---------------------------------------------------------------- loader

@@ -749,6 +749,7 @@ const SOFTCORE_AREA_SCRIPT: &str =
 
 /// Cell counts of `yosys ... synth_ice40 -dsp; stat` on the core (`rtl/synth_top.v`).
 fn softcore_area() -> Result<BTreeMap<String, u64>> {
+    crate::install::ensure_fpga_tools()?;
     let out = Command::new("yosys")
         .args(["-p", SOFTCORE_AREA_SCRIPT])
         .current_dir(workspace_root().join("verilator-tb"))

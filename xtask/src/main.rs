@@ -1,10 +1,12 @@
 //! `cargo xtask`: the project's commands.
 //!
 //! `demo` runs the main job, `test` runs every test, `fw` builds the firmware, `qemu` boots it,
-//! `bench` measures. Each installs what it needs first (see `install`).
+//! `bench` measures, `fpga` builds the SoC's bitstreams. Each installs what it needs first
+//! (see `install`).
 
 mod bench;
 mod demo;
+mod fpga;
 mod fw;
 mod install;
 mod qemu;
@@ -44,6 +46,8 @@ enum Cmd {
     Qemu(qemu::QemuArgs),
     /// Run the benchmarks and print their figures.
     Bench(bench::BenchArgs),
+    /// Synthesise, place, route and time the SoC for the iCE40 boards; write bitstreams.
+    Fpga(fpga::FpgaArgs),
 }
 
 fn main() {
@@ -61,6 +65,7 @@ fn main() {
         }
         Cmd::Qemu(args) => qemu::run(args),
         Cmd::Bench(args) => bench::run(args),
+        Cmd::Fpga(args) => fpga::run(args),
     };
     if let Err(err) = result {
         eprintln!("xtask: error: {err:#}");
