@@ -1,7 +1,8 @@
 // The core alone on an FPGA, for its area and clock figures: its buses end in flip-flops
-// clocked like the SoC's memories (falling edge: addresses, write data and strobes are
-// captured, read data leaves them), fed by a 32-bit LFSR so nothing is constant, and folded
-// into two output pins so nothing is removed. The RVFI port is left open (removed).
+// clocked like the SoC's memories and devices (falling edge: the addresses are captured and
+// the read data leaves; rising edge: write data, strobes and read strobes are captured), fed
+// by a 32-bit LFSR so nothing is constant, and folded into two output pins so nothing is
+// removed. The RVFI port is left open (removed).
 `default_nettype none
 
 module core_top (
@@ -33,13 +34,16 @@ module core_top (
         d_data <= {lfsr[15:0], lfsr[31:16]} ^ d_addr_q;
         i_addr_q <= imem_addr;
         d_addr_q <= dmem_addr;
+        d_pre_q <= dmem_rd_pre;
+    end
+    // the write port, read strobes (devices act on them) and the write buffer: rising edge
+    always @(posedge clk) begin
+        irq <= lfsr[31:29];
         d_wdata_q <= dmem_wdata ^ st_data;
         d_rmask_q <= dmem_rmask ^ st_mask;
         d_wstrb_q <= dmem_wstrb;
         d_re_q <= dmem_re ^ (^st_word);
-        d_pre_q <= dmem_rd_pre;
     end
-    always @(posedge clk) irq <= lfsr[31:29];
 
     /* verilator lint_off PINCONNECTEMPTY */
     rv_core #(.FETCH_AW(14)) core (

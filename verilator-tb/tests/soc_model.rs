@@ -359,7 +359,9 @@ fn store_into_the_halves_of_the_next_instruction() {
     }
     p.li(S1, map::SIM_CTRL);
     for r in [A3, A4, A5] {
-        p.i(isa::sw(r, S1, 4)).i(isa::srli(r, r, 8)).i(isa::sw(r, S1, 4));
+        p.i(isa::sw(r, S1, 4))
+            .i(isa::srli(r, r, 8))
+            .i(isa::sw(r, S1, 4));
     }
     p.exit_pass();
     let mut soc = Soc::new();

@@ -5,6 +5,7 @@
 //! (see `install`).
 
 mod bench;
+mod bench_fpga;
 mod demo;
 mod fpga;
 mod fw;
