@@ -16,10 +16,7 @@ module clint (
     reg        msip_r;
     reg [63:0] mtime, mtimecmp;
     assign msip = msip_r;
-    // mtip is a register that follows mtime and mtimecmp in the same clock (compared from
-    // their next values), so the interrupt line leaves a flip-flop.
-    reg         mtip_r;
-    assign mtip = mtip_r;
+    assign mtip = mtime >= mtimecmp;
 
     always @(*) begin
         case (offset)
@@ -34,24 +31,24 @@ module clint (
 
     wire [31:0] lane = {wstrb[3] ? 8'hff : 8'h00, wstrb[2] ? 8'hff : 8'h00,
                         wstrb[1] ? 8'hff : 8'h00, wstrb[0] ? 8'hff : 8'h00};
-    wire        wr   = sel && wstrb != 4'd0;
-    wire [63:0] mtime_inc = mtime + 64'd1;
-    wire [63:0] mtime_n =
-        rst ? 64'd0 :
-        wr && offset == 16'hbff8 ? {mtime_inc[63:32], (mtime[31:0] & ~lane) | (wdata & lane)} :
-        wr && offset == 16'hbffc ? {(mtime[63:32] & ~lane) | (wdata & lane), mtime_inc[31:0]} :
-        mtime_inc;
-    wire [63:0] mtimecmp_n =
-        rst ? 64'hffff_ffff_ffff_ffff :
-        wr && offset == 16'h4000 ? {mtimecmp[63:32], (mtimecmp[31:0] & ~lane) | (wdata & lane)} :
-        wr && offset == 16'h4004 ? {(mtimecmp[63:32] & ~lane) | (wdata & lane), mtimecmp[31:0]} :
-        mtimecmp;
     always @(posedge clk) begin
-        mtime <= mtime_n;
-        mtimecmp <= mtimecmp_n;
-        mtip_r <= mtime_n >= mtimecmp_n;
-        if (rst) msip_r <= 1'b0;
-        else if (wr && offset == 16'h0000 && wstrb[0]) msip_r <= wdata[0];
+        if (rst) begin
+            msip_r <= 1'b0;
+            mtime <= 64'd0;
+            mtimecmp <= 64'hffff_ffff_ffff_ffff;
+        end else begin
+            mtime <= mtime + 64'd1;
+            if (sel && wstrb != 4'd0) begin
+                case (offset)
+                    16'h0000: if (wstrb[0]) msip_r <= wdata[0];
+                    16'h4000: mtimecmp[31:0] <= (mtimecmp[31:0] & ~lane) | (wdata & lane);
+                    16'h4004: mtimecmp[63:32] <= (mtimecmp[63:32] & ~lane) | (wdata & lane);
+                    16'hbff8: mtime[31:0] <= (mtime[31:0] & ~lane) | (wdata & lane);
+                    16'hbffc: mtime[63:32] <= (mtime[63:32] & ~lane) | (wdata & lane);
+                    default: ;
+                endcase
+            end
+        end
     end
 endmodule
 
