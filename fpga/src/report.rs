@@ -335,6 +335,35 @@ mod tests {
         assert_eq!(Cells::from_yosys_log("no stat"), None);
     }
 
+    proptest::proptest! {
+        #[test]
+        fn logs_of_any_text_never_panic(text in ".{0,400}") {
+            let _ = Cells::from_yosys_log(&text);
+            let _ = logic_cells_from_log(&text);
+            let stat = format!("Number of cells: 3\n SB_LUT4 {}\n", text.len() + 1);
+            proptest::prop_assert_eq!(
+                Cells::from_yosys_log(&stat).map(|c| c.lut4),
+                Some(text.len() as u64 + 1)
+            );
+        }
+
+        #[test]
+        fn reports_of_any_shape_never_panic(
+            delays in proptest::collection::vec(-1e3f64..1e3, 0..6),
+            from in "(posedge|negedge|<async>) [a-z$_]{0,8}",
+            to in "(posedge|negedge) [a-z$_]{0,8}",
+        ) {
+            let r = json!({
+                "fmax": {"clk": {"achieved": 1.0}},
+                "critical_paths": [path(&from, &to, &delays)]
+            });
+            let t = Timing::from_report(&r);
+            let _ = t.dsp_bound_mhz("clk");
+            let _ = t.fmax_of("clk");
+            proptest::prop_assert_eq!(t.paths.len(), 1);
+        }
+    }
+
     #[test]
     fn garbage_reports_give_empty_figures() {
         let t = Timing::from_report(&json!({"fmax": 3, "critical_paths": {"a": 1}}));
