@@ -7,6 +7,7 @@ use std::process::Command;
 
 const RTL: &[&str] = &[
     "rtl/soc.v",
+    "rtl/soc_ram.v",
     "rtl/rv_core.v",
     "rtl/uart16550.v",
     "rtl/clint.v",

@@ -258,10 +258,15 @@ int main(int argc, char** argv) {
                 t->tb_meip = get<uint8_t>() != 0;
                 break;
             case OP_RELEASE:
-                // one more clock in reset fetches the first instruction of the loaded image
+                // One more clock in reset fetches the first instruction of the loaded image.
+                // Reset ends right after that rising edge, as from a register clocked by it:
+                // the RAM reads on the falling edge, with the fetch address of a running core.
                 t->rst = 1;
-                s.tick();
+                t->clk = 1;
+                t->eval();
                 t->rst = 0;
+                t->clk = 0;
+                t->eval();
                 s.cycle = 0;
                 break;
             case OP_RUN:

@@ -34,7 +34,16 @@ module plic (
             end
         end
     end
-    assign eip = best_id != 4'd0 && best_prio > threshold;
+    // The best priority exceeds the threshold exactly when some pending, enabled source's
+    // does (a flat OR, not through the arbitration chain, which only the claim needs).
+    wire [15:1] above;
+    genvar g;
+    generate
+        for (g = 1; g <= 15; g = g + 1) begin : cmp
+            assign above[g] = pending[g] && enable[g] && prio[g] > threshold;
+        end
+    endgenerate
+    assign eip = above != 15'd0;
 
     always @(*) begin
         if (offset < 22'h40 && offset[1:0] == 2'd0 && offset[5:2] != 4'd0)

@@ -36,7 +36,11 @@
 
 module rv_core #(
     parameter [31:0] RESET_PC = 32'h8000_0000,
-    parameter integer CNT_P = 6
+    parameter integer CNT_P = 6,
+    // The memory the fetch port reads: the 1 MiB region whose address bits 31:20 are
+    // FETCH_REGION, 2^FETCH_AW words repeated over it (stores there are snooped, below).
+    parameter [11:0] FETCH_REGION = 12'h800,
+    parameter integer FETCH_AW = 18
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -54,6 +58,15 @@ module rv_core #(
     output wire [3:0]  dmem_wstrb,
     output wire [31:0] dmem_wdata,
     input  wire [31:0] dmem_rdata,
+    // The instruction executing may read memory this cycle (from its decode alone, so it
+    // settles early; a cycle that writes memory never has it): for RAMs that must choose
+    // between a read and a write before the access is known to commit.
+    output wire        dmem_rd_pre,
+    // The last store into the fetch memory (FETCH_REGION), kept until the next one: a RAM
+    // with a write buffer holds that store (see fpga/soc_ram_spram.v).
+    output wire [FETCH_AW-1:0] last_st_word,
+    output wire [31:0] last_st_data,
+    output wire [3:0]  last_st_mask,
 
     input  wire        irq_software,
     input  wire        irq_timer,
@@ -417,10 +430,16 @@ module rv_core #(
 
     wire hold = seq == S_CNT || trap_in || two_ph || (ex && stall);
     wire [31:0] fetch_pc = rst ? RESET_PC : seq == S_TRAP ? trap_pc : hold ? pc : next_pc;
-    assign imem_addr  = fetch_pc;
+    // The memory is read with the address of the next instruction whether or not this cycle
+    // holds: `hold` depends on interrupt lines, traps and stalls, which settle late, while
+    // the memory needs its address early (it reads on the falling edge). A holding cycle
+    // instead keeps the instruction word it has, updated with a store that landed since it
+    // was read, which is what reading it again at `pc` gives (see `refetch` below).
+    assign imem_addr  = rst ? RESET_PC : seq == S_TRAP ? trap_pc : next_pc;
     // an AMO stores in EX2 to the address it loaded from
     assign dmem_addr  = seq == S_EX2 ? {res_addr[31:2], 2'b00} : {ls_addr[31:2], 2'b00};
     assign dmem_re    = (commit_ex && mem_rd) || amo_a;
+    assign dmem_rd_pre = ex && mem_rd;
     assign dmem_rmask = mem_rd ? (is_load ? st_mask : 4'b1111) : 4'b0000;
     assign dmem_wstrb = (commit_ex && mem_wr) ? (is_store ? st_mask : 4'b1111) :
                         (in_ex2 && is_amo) ? 4'b1111 : 4'b0000;
@@ -462,7 +481,29 @@ module rv_core #(
     // ---------------------------------------------------------------- fetch stage
     // Port A reads rs1, or the counter word of a coming CNT cycle. Port B reads rs2, the CSR
     // word of a SYSTEM instruction (mepc for MRET/ECALL/EBREAK/WFI), or mtvec for TRAP.
-    wire [31:0] fr = imem_rdata;
+    // The instruction word in `ir` as the memory holds it now: `ir_word` was read half a
+    // cycle before this cycle began, so only a store that landed at this cycle's start edge
+    // (`st_q`, with the last store in `st_*`) can have changed it. Each of its halfwords lies in word `pw` (at a word
+    // boundary both do; otherwise the low one) or `pw + 1`.
+    reg  [31:0] ir_word;
+    reg         st_q;
+    reg  [FETCH_AW-1:0] st_w;
+    reg  [3:0]  st_m;
+    reg  [31:0] st_d;
+    wire        pc_mem = pc[31:20] == FETCH_REGION;
+    wire [FETCH_AW-1:0] pw = pc[FETCH_AW+1:2];
+    wire        hit0 = st_q && pc_mem && st_w == pw;
+    wire        hit1 = st_q && pc_mem && st_w == pw + {{(FETCH_AW-1){1'b0}}, 1'b1};
+    wire [3:0]  pm   = pc[1] ? {st_m[1:0] & {2{hit1}}, st_m[3:2] & {2{hit0}}} :
+                               st_m & {4{hit0}};
+    wire [31:0] pd   = pc[1] ? {st_d[15:0], st_d[31:16]} : st_d;
+    wire [31:0] refetch = {pm[3] ? pd[31:24] : ir_word[31:24], pm[2] ? pd[23:16] : ir_word[23:16],
+                           pm[1] ? pd[15:8] : ir_word[15:8], pm[0] ? pd[7:0] : ir_word[7:0]};
+    wire [31:0] fr = !rst && hold ? refetch : imem_rdata;
+    wire        st_now = !rst && dmem_wstrb != 4'd0 && dmem_addr[31:20] == FETCH_REGION;
+    assign last_st_word = st_w;
+    assign last_st_data = st_d;
+    assign last_st_mask = st_m;
     wire        fi_c = fr[1:0] != 2'b11;
     // RV32C expansion: each compressed instruction becomes the 32-bit one it stands for,
     // except for its immediate, which goes straight to `ir_imm` (the expanded word has zeros
@@ -551,6 +592,13 @@ module rv_core #(
         ir_c <= fi_c;
         ir_imm <= fi_c ? immc : imm32;
         ir_raw <= fi_c ? {16'd0, c} : fr;
+        ir_word <= fr;
+        st_q <= st_now;
+        if (st_now) begin
+            st_w <= dmem_addr[FETCH_AW+1:2];
+            st_m <= dmem_wstrb;
+            st_d <= dmem_wdata;
+        end
         rf_a <= regs[port_a];
         rf_b <= regs[port_b];
         byp_a <= !rst && ((wb_en && wb_addr == port_a) || amo_a);

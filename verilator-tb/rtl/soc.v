@@ -9,7 +9,12 @@
 //   0x8100_0000  frame-grabber window, 0x13_0000 bytes (written by the harness, read by the core)
 `default_nettype none
 
-module soc (
+module soc #(
+    parameter integer RAM_AW = 18,              // RAM: 2^RAM_AW words (1 MiB)
+    parameter integer FMEM_WORDS = 32'h4_C000,  // frame window: vision::frame::WINDOW_LEN / 4
+    parameter integer FMEM_AW = 19,             // address bits of the window's words
+    parameter integer FG_PORT = 0               // 1: the window is written by the fg_* port
+) (
     input  wire        clk,
     input  wire        rst,
 
@@ -17,6 +22,12 @@ module soc (
     input  wire        bd_we,
     input  wire [17:0] bd_addr,
     input  wire [31:0] bd_wdata,
+
+    // Frame-grabber port (FG_PORT = 1): writes the byte lanes `fg_we` of a window word at the
+    // rising edge.
+    input  wire [3:0]  fg_we,
+    input  wire [FMEM_AW-1:0] fg_addr,
+    input  wire [31:0] fg_wdata,
 
     // Extra machine external interrupt line for test benches.
     input  wire        tb_meip,
@@ -29,6 +40,11 @@ module soc (
     input  wire [7:0]  uart1_rx_data,
     output wire        uart1_tx_valid,
     output wire [7:0]  uart1_tx_data,
+    // The UARTs' serial lines and divisors (for an FPGA's line receivers).
+    output wire        uart0_txd,
+    output wire        uart1_txd,
+    output wire [15:0] uart0_div,
+    output wire [15:0] uart1_div,
 
     output reg         sim_exit_valid,
     output reg  [31:0] sim_exit_value,
@@ -56,7 +72,10 @@ module soc (
     wire [31:0] imem_addr, imem_rdata;
     wire [31:0] dmem_addr, dmem_wdata;
     reg  [31:0] dmem_rdata;
-    wire        dmem_re;
+    wire        dmem_re, dmem_rd_pre;
+    wire [RAM_AW-1:0] st_word;
+    wire [31:0] st_data;
+    wire [3:0]  st_mask;
     wire [3:0]  dmem_rmask, dmem_wstrb;
     wire        msip, mtip, meip;
 
@@ -65,11 +84,13 @@ module soc (
     reg tb_meip_q;
     always @(posedge clk) tb_meip_q <= tb_meip;
 
-    rv_core core (
+    rv_core #(.FETCH_AW(RAM_AW)) core (
         .clk(clk), .rst(rst),
         .imem_addr(imem_addr), .imem_rdata(imem_rdata),
         .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
         .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
+        .dmem_rd_pre(dmem_rd_pre),
+        .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
         .irq_software(msip), .irq_timer(mtip), .irq_external(meip | tb_meip_q),
         .sleeping(core_sleeping),
         .rvfi_valid(rvfi_valid), .rvfi_order(rvfi_order), .rvfi_insn(rvfi_insn),
@@ -83,20 +104,16 @@ module soc (
     );
 
     // ------------------------------------------------------------------ RAM
-    // Two halfword banks: `ram_lo` holds bits 15:0 of each word, `ram_hi` bits 31:16. The
-    // data port reads and writes both at the same word; the fetch port reads the 32 bits at
-    // any halfword address in one cycle: at a word boundary {hi[w], lo[w]}, in the middle of
-    // a word {lo[w + 1], hi[w]} (the low bank's address is w + addr[1]).
-    reg [15:0] ram_lo [0:262143];
-    reg [15:0] ram_hi [0:262143];
+    // `soc_ram` (rtl/soc_ram.v): two halfword banks, so the fetch port reads the 32 bits at any
+    // halfword address in one cycle; both read ports are registered on the falling edge (see
+    // there). The RAM is 2^RAM_AW words, repeated over the 1 MiB region.
     wire imem_in_ram = imem_addr[31:20] == 12'h800;
-    wire [17:0] iw = imem_addr[19:2];
-    wire [15:0] i_lo = ram_lo[iw + {17'd0, imem_addr[1]}];
-    wire [15:0] i_hi = ram_hi[iw];
-    assign imem_rdata = !imem_in_ram ? 32'd0 : imem_addr[1] ? {i_lo, i_hi} : {i_hi, i_lo};
+    reg  imem_in_ram_q;
+    wire [31:0] ram_idata;
+    always @(negedge clk) imem_in_ram_q <= imem_in_ram;
+    assign imem_rdata = imem_in_ram_q ? ram_idata : 32'd0;
 
     wire sel_ram   = dmem_addr[31:20] == 12'h800;
-    localparam [21:0] FMEM_WORDS = 22'h4_C000;  // vision::frame::WINDOW_LEN / 4
     wire sel_fmem  = dmem_addr[31:24] == 8'h81 && dmem_addr[23:2] < FMEM_WORDS;
     wire sel_sim   = dmem_addr[31:4] == 28'h0010_000;
     wire sel_clint = dmem_addr[31:16] == 16'h0200;
@@ -104,39 +121,42 @@ module soc (
     wire sel_uart0 = dmem_addr[31:3] == 29'h0200_0000;
     wire sel_uart1 = dmem_addr[31:3] == 29'h0200_0200;
 
-    integer k;
-    initial for (k = 0; k < 262144; k = k + 1) begin
-        ram_lo[k] = 16'd0;
-        ram_hi[k] = 16'd0;
-    end
-
-    wire [17:0] dw = dmem_addr[19:2];
-    wire [31:0] ram_rdata = {ram_hi[dw], ram_lo[dw]};
-    always @(posedge clk) begin
-        if (bd_we) begin
-            ram_lo[bd_addr] <= bd_wdata[15:0];
-            ram_hi[bd_addr] <= bd_wdata[31:16];
-        end else if (sel_ram && !rst) begin
-            if (dmem_wstrb[0]) ram_lo[dw][7:0] <= dmem_wdata[7:0];
-            if (dmem_wstrb[1]) ram_lo[dw][15:8] <= dmem_wdata[15:8];
-            if (dmem_wstrb[2]) ram_hi[dw][7:0] <= dmem_wdata[23:16];
-            if (dmem_wstrb[3]) ram_hi[dw][15:8] <= dmem_wdata[31:24];
-        end
-    end
+    wire [31:0] ram_rdata;
+    soc_ram #(.AW(RAM_AW)) ram (
+        .clk(clk),
+        .i_half(imem_addr[RAM_AW+1:1]), .i_rdata(ram_idata),
+        .d_word(dmem_addr[RAM_AW+1:2]), .d_pre(dmem_rd_pre),
+        .st_word(st_word), .st_data(st_data), .st_mask(st_mask),
+        .d_we(sel_ram && !rst ? dmem_wstrb : 4'd0),
+        .d_wdata(dmem_wdata), .d_rdata(ram_rdata),
+        .bd_we(bd_we), .bd_addr(bd_addr[RAM_AW-1:0]), .bd_wdata(bd_wdata)
+    );
 
     // ------------------------------------------------------------------ frame-grabber window
-    // Ordinary memory for the core (data port only); the harness writes it between clock
-    // cycles through the model's public view of `fmem`.
+    // Memory read by the core's data port. In simulation (FG_PORT = 0) the core may also store
+    // into it and the harness writes it between clock cycles through the model's public view
+    // of `fmem`, so it is read combinationally: a harness write is seen by loads from the next
+    // cycle on. On an FPGA (FG_PORT = 1) the frame-grabber port `fg_*` writes it, core stores
+    // are ignored, and the read is registered on the falling edge like the RAM's (block RAM).
+    integer k;
     reg [31:0] fmem [0:FMEM_WORDS-1] /*verilator public_flat*/;
     initial for (k = 0; k < FMEM_WORDS; k = k + 1) fmem[k] = 32'd0;
 
-    wire [31:0] fmem_rdata = fmem[dmem_addr[20:2]];
+    wire [FMEM_AW-1:0] fw = dmem_addr[FMEM_AW+1:2];
+    reg  [31:0] fmem_q;
+    always @(negedge clk) fmem_q <= fmem[fw];
+    wire [31:0] fmem_rdata = FG_PORT != 0 ? fmem_q : fmem[fw];
     always @(posedge clk) begin
-        if (sel_fmem && !rst) begin
-            if (dmem_wstrb[0]) fmem[dmem_addr[20:2]][7:0] <= dmem_wdata[7:0];
-            if (dmem_wstrb[1]) fmem[dmem_addr[20:2]][15:8] <= dmem_wdata[15:8];
-            if (dmem_wstrb[2]) fmem[dmem_addr[20:2]][23:16] <= dmem_wdata[23:16];
-            if (dmem_wstrb[3]) fmem[dmem_addr[20:2]][31:24] <= dmem_wdata[31:24];
+        if (FG_PORT != 0) begin
+            if (fg_we[0]) fmem[fg_addr][7:0] <= fg_wdata[7:0];
+            if (fg_we[1]) fmem[fg_addr][15:8] <= fg_wdata[15:8];
+            if (fg_we[2]) fmem[fg_addr][23:16] <= fg_wdata[23:16];
+            if (fg_we[3]) fmem[fg_addr][31:24] <= fg_wdata[31:24];
+        end else if (sel_fmem && !rst) begin
+            if (dmem_wstrb[0]) fmem[fw][7:0] <= dmem_wdata[7:0];
+            if (dmem_wstrb[1]) fmem[fw][15:8] <= dmem_wdata[15:8];
+            if (dmem_wstrb[2]) fmem[fw][23:16] <= dmem_wdata[23:16];
+            if (dmem_wstrb[3]) fmem[fw][31:24] <= dmem_wdata[31:24];
         end
     end
 
@@ -174,14 +194,16 @@ module soc (
         .clk(clk), .rst(rst), .sel(sel_uart0), .addr_hi(dmem_addr[2]), .re(dmem_re),
         .rmask(dmem_rmask), .wstrb(dmem_wstrb), .wdata(dmem_wdata), .rdata(uart0_rdata),
         .irq(uart0_irq), .rx_valid(uart0_rx_valid), .rx_data(uart0_rx_data),
-        .tx_valid(uart0_tx_valid), .tx_data(uart0_tx_data)
+        .tx_valid(uart0_tx_valid), .tx_data(uart0_tx_data),
+        .txd(uart0_txd), .divisor_out(uart0_div)
     );
 
     uart16550 uart1 (
         .clk(clk), .rst(rst), .sel(sel_uart1), .addr_hi(dmem_addr[2]), .re(dmem_re),
         .rmask(dmem_rmask), .wstrb(dmem_wstrb), .wdata(dmem_wdata), .rdata(uart1_rdata),
         .irq(uart1_irq), .rx_valid(uart1_rx_valid), .rx_data(uart1_rx_data),
-        .tx_valid(uart1_tx_valid), .tx_data(uart1_tx_data)
+        .tx_valid(uart1_tx_valid), .tx_data(uart1_tx_data),
+        .txd(uart1_txd), .divisor_out(uart1_div)
     );
 
     always @(*) begin

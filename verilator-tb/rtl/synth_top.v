@@ -23,6 +23,7 @@ module synth_top (
         .imem_addr(imem_addr), .imem_rdata(imem_rdata),
         .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
         .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
+        .dmem_rd_pre(), .last_st_word(), .last_st_data(), .last_st_mask(),
         .irq_software(irq_software), .irq_timer(irq_timer), .irq_external(irq_external),
         .sleeping(),
         .rvfi_valid(), .rvfi_order(), .rvfi_insn(), .rvfi_trap(), .rvfi_intr(),

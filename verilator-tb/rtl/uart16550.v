@@ -21,7 +21,11 @@ module uart16550 (
     input  wire        rx_valid,
     input  wire [7:0]  rx_data,
     output reg         tx_valid,
-    output reg  [7:0]  tx_data
+    output reg  [7:0]  tx_data,
+    // The transmitter's serial line (8N1, idle high), driven by the shifter, and the divisor,
+    // for a line receiver in front of rx_valid/rx_data (FPGA builds).
+    output reg         txd,
+    output wire [15:0] divisor_out
 );
     reg [7:0] ier, lcr, mcr, scr, dll, dlm;
     reg       fifo_en;
@@ -38,16 +42,19 @@ module uart16550 (
 
     reg        sh_busy;
     reg [7:0]  sh_data;
-    reg [23:0] sh_timer;
+    reg [15:0] sh_div;           // the divisor the byte in the shifter is sent with
+    reg [19:0] bit_timer;        // clocks left of the bit on the line, minus one
+    reg [3:0]  bit_idx;          // 0: start bit, 1..8: data bits, 9: stop bit
     reg [25:0] idle_timer;
 
     wire        dlab     = lcr[7];
     wire [15:0] divisor  = {dlm, dll} == 16'd0 ? 16'd1 : {dlm, dll};
-    wire [23:0] char_clk = {4'd0, divisor, 4'd0} * 24'd10;
-
+    // The RX timeout's threshold: 4 character times (640 * divisor clocks).
+    wire [25:0] rto_clks = {1'b0, divisor, 9'd0} + {3'd0, divisor, 7'd0};
     wire [4:0] trig_level = !fifo_en ? 5'd1 : rx_trig == 2'd0 ? 5'd1 : rx_trig == 2'd1 ? 5'd4 :
                             rx_trig == 2'd2 ? 5'd8 : 5'd14;
-    wire rx_timeout = rx_cnt != 5'd0 && idle_timer >= {char_clk, 2'b00};
+    assign divisor_out = divisor;
+    wire rx_timeout = rx_cnt != 5'd0 && idle_timer >= rto_clks;
 
     wire ip_ls   = ier[2] && overrun;
     wire ip_rda  = ier[0] && rx_cnt >= trig_level;
@@ -55,7 +62,7 @@ module uart16550 (
     wire ip_thre = ier[1] && thre_ip;
     wire [3:0] iir_id = ip_ls ? 4'h6 : ip_rda ? 4'h4 : ip_rto ? 4'hc : ip_thre ? 4'h2 : 4'h1;
     wire [7:0] iir = {fifo_en ? 2'b11 : 2'b00, 2'b00, iir_id};
-    assign irq = iir_id != 4'h1;
+    assign irq = ip_ls || ip_rda || ip_rto || ip_thre;
 
     wire [7:0] lsr = {1'b0, tx_cnt == 5'd0 && !sh_busy, tx_cnt == 5'd0, 3'b000, overrun,
                       rx_cnt != 5'd0};
@@ -73,7 +80,8 @@ module uart16550 (
     wire rx_pop  = rd_rbr && rx_cnt != 5'd0;
     wire rx_push = rx_valid && rx_cnt != 5'd16;
     wire tx_push = wr_thr && tx_cnt != 5'd16;
-    wire sh_done = sh_busy && sh_timer == 24'd0;
+    // a byte takes 10 bit times of 16 * divisor clocks
+    wire sh_done = sh_busy && bit_idx == 4'd9 && bit_timer == 20'd0;
     wire tx_pop  = (!sh_busy || sh_done) && tx_cnt != 5'd0;
 
     always @(posedge clk) begin
@@ -83,7 +91,8 @@ module uart16550 (
             fifo_en <= 1'b0; rx_trig <= 2'd0; overrun <= 1'b0; thre_ip <= 1'b0;
             rx_rd <= 4'd0; rx_wr <= 4'd0; rx_cnt <= 5'd0;
             tx_rd <= 4'd0; tx_wr <= 4'd0; tx_cnt <= 5'd0;
-            sh_busy <= 1'b0; sh_timer <= 24'd0; idle_timer <= 26'd0; tx_data <= 8'd0;
+            sh_busy <= 1'b0; idle_timer <= 26'd0; tx_data <= 8'd0;
+            bit_timer <= 20'd0; bit_idx <= 4'd0; txd <= 1'b1;
         end else begin
             // receive side
             if (rx_push) begin
@@ -102,17 +111,28 @@ module uart16550 (
                 txf[tx_wr] <= wdata[7:0];
                 tx_wr <= tx_wr + 4'd1;
             end
+            // the serial line `txd` shows the bit in flight
             if (sh_done) begin
                 sh_busy <= 1'b0;
                 tx_valid <= 1'b1;
                 tx_data <= sh_data;
+                txd <= 1'b1;
             end else if (sh_busy) begin
-                sh_timer <= sh_timer - 24'd1;
+                if (bit_timer == 20'd0) begin
+                    bit_idx <= bit_idx + 4'd1;
+                    bit_timer <= {sh_div, 4'd0} - 20'd1;
+                    txd <= bit_idx >= 4'd8 ? 1'b1 : sh_data[bit_idx[2:0]];
+                end else begin
+                    bit_timer <= bit_timer - 20'd1;
+                end
             end
             if (tx_pop) begin
                 sh_busy <= 1'b1;
                 sh_data <= txf[tx_rd];
-                sh_timer <= char_clk - 24'd1;
+                sh_div <= divisor;
+                bit_idx <= 4'd0;
+                bit_timer <= {divisor, 4'd0} - 20'd1;
+                txd <= 1'b0;
                 tx_rd <= tx_rd + 4'd1;
             end
             tx_cnt <= tx_cnt + {4'd0, tx_push} - {4'd0, tx_pop};
@@ -146,6 +166,7 @@ module uart16550 (
             end
         end
     end
+
 endmodule
 
 `default_nettype wire

@@ -247,3 +247,63 @@ fn softcore_firmware_sees_a_marker_in_the_frame_window() {
         "{blob:?}"
     );
 }
+
+/// Firmware instructions the long lockstep run checks at least.
+const LONG_FIRMWARE_INSTRUCTIONS: u64 = 20_000_000;
+
+/// The firmware half of `cargo xtask bench --only lockstep`: boot, bring the LBC up, then
+/// publish frames (a marker moving across a grey 640x480 picture) and ask for each frame's
+/// camera report until at least `LONG_FIRMWARE_INSTRUCTIONS` instructions have been checked
+/// against the golden model. Prints the `figures:` line the benchmark reads.
+#[test]
+#[ignore = "long: run by cargo xtask bench --only lockstep"]
+fn firmware_in_lockstep_long() {
+    use verilator_tb::soc::FRAME_WINDOW_LEN;
+    use vision::colour::{Rgb, MARKER_PALETTE};
+    use vision::frame::{FrameWindow, PixelFormat};
+    let Some(mut rig) = Rig::boot() else {
+        println!("figures: mode=lockstep-firmware instructions=0 cycles=0 mismatches=0 wall_s=0");
+        return;
+    };
+    let start = Instant::now();
+    rig.lbc_up();
+    let grey = Rgb::new(128, 128, 128).to_rgb332();
+    let blue = MARKER_PALETTE[2].to_rgb332();
+    let mut window = FrameWindow::init(vec![0u8; FRAME_WINDOW_LEN], 640, 480, PixelFormat::Rgb332)
+        .expect("window layout");
+    let mut frames = 0u32;
+    while rig.cosim.checked() < LONG_FIRMWARE_INSTRUCTIONS {
+        let index = window.begin_write();
+        let x0 = 20 + (frames as usize * 37) % 560;
+        for (k, px) in window.buffer_mut(index).iter_mut().enumerate() {
+            let (x, y) = (k % 640, k / 640);
+            let inside = (x0..x0 + 40).contains(&x) && (200..260).contains(&y);
+            *px = if inside { blue } else { grey };
+        }
+        let seq = window.publish(index, rig.cosim.now_us());
+        let bytes = window.into_inner();
+        rig.cosim
+            .soc
+            .write_frame_window(0, &bytes)
+            .expect("fits the window");
+        window = FrameWindow::new_checked(bytes).expect("a published window");
+        let mut done = false;
+        rig.run_until(5_000, |r| {
+            match r.request(&Request::Camera { blob: 0 }) {
+                Reply::Camera(c) => done = c.sequence == seq,
+                other => panic!("camera: {other:?}"),
+            }
+            done
+        });
+        assert!(done, "frame {seq} never processed");
+        frames += 1;
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let (checked, cycles) = (rig.cosim.checked(), rig.cosim.soc.cycle());
+    println!(
+        "firmware: {checked} instructions in {cycles} cycles ({frames} frames), no mismatch, {wall:.0} s"
+    );
+    println!(
+        "figures: mode=lockstep-firmware instructions={checked} cycles={cycles} frames={frames} mismatches=0 wall_s={wall:.3}"
+    );
+}

@@ -314,6 +314,85 @@ fn store_into_the_next_instruction() {
     assert!(new_runs > 0 && new_runs < 150, "a3 = {a3}");
 }
 
+/// Stores into the halves of a 32-bit instruction at a halfword address right after them: the
+/// upper half (in the next word) and the lower half (in the same word). The instruction was
+/// fetched before the store landed, so it runs as it was, except after a counter carry cycle,
+/// which fetches it again (the RTL keeps the word it has and applies the store).
+#[test]
+fn store_into_the_halves_of_the_next_instruction() {
+    const C_NOP: u16 = 0x0001;
+    const T3: u8 = 28;
+    const T4: u8 = 29;
+    const T5: u8 = 30;
+    let x = isa::addi(A3, A3, 1);
+    let x_new = isa::addi(A3, A3, 100);
+    let y = isa::addi(A4, A4, 1);
+    let y_new = isa::addi(A5, A4, 1); // another rd: the lower half changes
+    let mut p = Prog::new();
+    p.li(T0, x_new >> 16)
+        .li(T3, x >> 16)
+        .li(T4, y_new & 0xffff)
+        .li(T5, y & 0xffff)
+        .li(A3, 0)
+        .li(A4, 0)
+        .li(A5, 0)
+        .li(A0, 0)
+        .li(T2, 300);
+    // the loop as halfwords from `top` (t1): offsets in bytes in the comments
+    let halves = |w: u32| [w as u16, (w >> 16) as u16];
+    let mut h: Vec<u16> = Vec::new();
+    h.extend(halves(isa::auipc(T1, 0))); // 0
+    h.push(C_NOP); // 4
+    h.extend(halves(isa::sh(T0, T1, 12))); // 6: x's upper half
+    h.extend(halves(x)); // 10
+    h.push(C_NOP); // 14
+    h.extend(halves(isa::sh(T3, T1, 12))); // 16: restore it
+    h.push(C_NOP); // 20
+    h.extend(halves(isa::sh(T4, T1, 26))); // 22: y's lower half
+    h.extend(halves(y)); // 26
+    h.extend(halves(isa::sh(T5, T1, 26))); // 30: restore it
+    h.push(C_NOP); // 34: 13 instructions a turn, so carries land at every offset
+    h.extend(halves(isa::addi(A0, A0, 1))); // 36
+    h.extend(halves(isa::blt(A0, T2, -40))); // 40
+    for pair in h.chunks(2) {
+        p.i(u32::from(pair[0]) | u32::from(pair[1]) << 16);
+    }
+    p.li(S1, map::SIM_CTRL);
+    for r in [A3, A4, A5] {
+        p.i(isa::sw(r, S1, 4))
+            .i(isa::srli(r, r, 8))
+            .i(isa::sw(r, S1, 4));
+    }
+    p.exit_pass();
+    let mut soc = Soc::new();
+    soc.load_words(RAM_BASE, &p.words).unwrap();
+    soc.release();
+    let (records, events) = soc.run_records(100_000);
+    assert!(matches!(
+        events.last().map(|e| e.value),
+        Some(Event::Exit(Exit::Pass))
+    ));
+    let mut m = soc_model::Soc::new();
+    m.load_words(RAM_BASE, &p.words).unwrap();
+    let (mut out, mut trace) = (Vec::new(), Vec::new());
+    m.run_until_traced(soc.cycle(), &mut out, &mut trace);
+    compare_records(&records, &trace);
+    assert_eq!(rtl_events(&events), model_events(&out));
+    assert_eq!(m.cycle(), soc.cycle());
+    let bytes: Vec<u32> = events
+        .iter()
+        .filter_map(|e| match e.value {
+            Event::Console(b) => Some(u32::from(b)),
+            _ => None,
+        })
+        .collect();
+    let [a3, a4, a5] = [0, 1, 2].map(|k| bytes[2 * k] | bytes[2 * k + 1] << 8);
+    // both instructions ran as stored by some iterations and as fetched by most
+    let x_new_runs = (a3 - 300) / 99;
+    assert!(x_new_runs > 0 && x_new_runs < 300, "a3 = {a3}");
+    assert!(a4 > 0 && a4 < 300 && a5 > 0, "a4 = {a4}, a5 = {a5}");
+}
+
 /// A DIV and CSR writes to every register-file CSR, with an interrupt line rising during the
 /// divider, and a run of WFIs woken by the test bench's line.
 #[test]

@@ -18,6 +18,8 @@
 //!   real time (`arena/tests/arena_bench.rs`).
 //! - `sweep`: runs per hour of `almc sweep run` (release, every core) on the four-car
 //!   formation sweep `experiments/sweeps/formation-wedge-loss.toml`, from scratch.
+//! - `fpga`, `lockstep`: the soft core on the iCE40 boards, and 10^8 instructions checked
+//!   against the golden model (`bench_fpga`).
 //!
 //! `--only NAME` runs one of them; `--out FILE` also writes the markdown to a file.
 
@@ -82,10 +84,14 @@ pub enum Bench {
     Softcore,
     /// Parameter sweeps: runs per hour of a four-car formation sweep.
     Sweep,
+    /// The SoC and the core on the iCE40 boards: utilization and Fmax.
+    Fpga,
+    /// At least 10^8 instructions in lockstep with the golden model.
+    Lockstep,
 }
 
 impl Bench {
-    const ALL: [Bench; 9] = [
+    const ALL: [Bench; 11] = [
         Bench::Size,
         Bench::FwDecode,
         Bench::HostDecode,
@@ -95,6 +101,8 @@ impl Bench {
         Bench::Arena,
         Bench::Softcore,
         Bench::Sweep,
+        Bench::Fpga,
+        Bench::Lockstep,
     ];
 
     fn title(self) -> &'static str {
@@ -108,6 +116,8 @@ impl Bench {
             Bench::Arena => "the arena: virtual-time speed, state delivery, QEMU cars",
             Bench::Softcore => "soft core",
             Bench::Sweep => "sweeps",
+            Bench::Fpga => "the soft core on iCE40 FPGAs",
+            Bench::Lockstep => "lockstep with the golden model",
         }
     }
 }
@@ -132,6 +142,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
             Bench::Arena => arena(),
             Bench::Softcore => softcore(),
             Bench::Sweep => sweep(),
+            Bench::Fpga => crate::bench_fpga::fpga(),
+            Bench::Lockstep => crate::bench_fpga::lockstep(),
         };
         match section {
             Ok(text) => {
@@ -158,7 +170,7 @@ fn kib(bytes: u64) -> String {
     format!("{:.1} KiB", bytes as f64 / 1024.0)
 }
 
-fn verdict(ok: bool) -> &'static str {
+pub(crate) fn verdict(ok: bool) -> &'static str {
     if ok {
         "met"
     } else {
@@ -673,7 +685,7 @@ const SOFTCORE_SPEED_GOAL: f64 = 2.0e6;
 const SOFTCORE_LUT_GOAL: u64 = 2000;
 
 /// `key=value` fields of the last line starting with `figures:` whose `mode` is `mode`.
-fn figures(text: &str, mode: &str) -> Option<BTreeMap<String, String>> {
+pub(crate) fn figures(text: &str, mode: &str) -> Option<BTreeMap<String, String>> {
     text.lines()
         .filter_map(|l| l.trim().strip_prefix("figures:"))
         .map(|rest| {
@@ -685,7 +697,7 @@ fn figures(text: &str, mode: &str) -> Option<BTreeMap<String, String>> {
         .rfind(|f| f.get("mode").is_some_and(|m| m == mode))
 }
 
-fn field(f: &BTreeMap<String, String>, key: &str) -> Result<f64> {
+pub(crate) fn field(f: &BTreeMap<String, String>, key: &str) -> Result<f64> {
     f.get(key)
         .and_then(|v| v.parse().ok())
         .with_context(|| format!("no numeric `{key}` in the figures"))
@@ -700,7 +712,7 @@ fn ignored_test(package: &str, test: &str, env: &[(&str, &std::ffi::OsStr)]) -> 
 }
 
 /// Like [`ignored_test`], only the tests whose name contains `name`.
-fn ignored_test_named(
+pub(crate) fn ignored_test_named(
     package: &str,
     test: &str,
     name: &str,
@@ -749,6 +761,7 @@ const SOFTCORE_AREA_SCRIPT: &str =
 
 /// Cell counts of `yosys ... synth_ice40 -dsp; stat` on the core (`rtl/synth_top.v`).
 fn softcore_area() -> Result<BTreeMap<String, u64>> {
+    crate::install::ensure_fpga_tools()?;
     let out = Command::new("yosys")
         .args(["-p", SOFTCORE_AREA_SCRIPT])
         .current_dir(workspace_root().join("verilator-tb"))

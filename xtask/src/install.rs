@@ -116,3 +116,13 @@ pub fn ensure_verilator() -> Result<()> {
     }
     Ok(())
 }
+
+/// yosys, nextpnr-ice40 and icepack, for the FPGA flow (`cargo xtask fpga`, the soft core's
+/// area figures and the bitstream tests).
+pub fn ensure_fpga_tools() -> Result<()> {
+    ensure_debian_packages(&fpga::DEBIAN_PACKAGES)?;
+    if let Some(tool) = fpga::missing_tools().first() {
+        bail!("{tool} not found on PATH although its Debian package is installed");
+    }
+    Ok(())
+}

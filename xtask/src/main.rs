@@ -2,10 +2,13 @@
 //!
 //! `demo` runs the main job, `test` runs every test, `fw` builds the firmware (or a program,
 //! `--bin`), `new-program` makes a program from the template, `qemu` boots the firmware,
-//! `bench` measures. Each installs what it needs first (see `install`).
+//! `bench` measures, `fpga` builds the SoC's bitstreams. Each installs what it needs first
+//! (see `install`).
 
 mod bench;
+mod bench_fpga;
 mod demo;
+mod fpga;
 mod fw;
 mod install;
 mod program;
@@ -55,6 +58,8 @@ enum Cmd {
     Qemu(qemu::QemuArgs),
     /// Run the benchmarks and print their figures.
     Bench(bench::BenchArgs),
+    /// Synthesise, place, route and time the SoC for the iCE40 boards; write bitstreams.
+    Fpga(fpga::FpgaArgs),
 }
 
 fn main() {
@@ -74,6 +79,7 @@ fn main() {
         Cmd::NewProgram { name } => program::create(&fw::app_dir(), &name),
         Cmd::Qemu(args) => qemu::run(args),
         Cmd::Bench(args) => bench::run(args),
+        Cmd::Fpga(args) => fpga::run(args),
     };
     if let Err(err) = result {
         eprintln!("xtask: error: {err:#}");

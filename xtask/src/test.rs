@@ -42,6 +42,11 @@ pub fn run(args: TestArgs) -> Result<()> {
     if let Err(e) = install::ensure_debian_packages(&["chromium"]) {
         eprintln!("xtask: warning: {e:#}\nxtask: the report's browser test will be skipped");
     }
+    // The bitstream tests (fpga/tests) run yosys, nextpnr-ice40 and icepack; they are
+    // skipped, with a message, where these cannot be installed.
+    if let Err(e) = install::ensure_fpga_tools() {
+        eprintln!("xtask: the FPGA bitstream tests will be skipped: {e:#}");
+    }
     // The sweep test on Slurm (almc/tests/sweep_slurm.rs) starts a one-node cluster; it is
     // skipped, with a message, where these cannot be installed.
     if let Err(e) = install::ensure_debian_packages(&["slurm-wlm", "munge"]) {

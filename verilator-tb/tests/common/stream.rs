@@ -247,6 +247,20 @@ fn gen(rng: &mut ChaCha8Rng, p: &mut Prog, room: usize, targets: &mut HashSet<us
 }
 
 pub fn stream(seed: u64) -> (Prog, Vec<(u64, Stimulus)>) {
+    stream_with(seed, None)
+}
+
+/// Where [`looped`] keeps its loop counter: away from every address the stream touches.
+const LOOP_COUNTER: u32 = DATA_AREA + 0x1_0000;
+
+/// The stream of `seed` run `iterations` times over (registers, memory and CSRs carry on from
+/// one pass to the next), with the interrupt line toggled every 50 to 600 cycles for
+/// `cycles` cycles.
+pub fn looped(seed: u64, iterations: u32, cycles: u64) -> (Prog, Vec<(u64, Stimulus)>) {
+    stream_with(seed, Some((iterations, cycles)))
+}
+
+fn stream_with(seed: u64, looped: Option<(u32, u64)>) -> (Prog, Vec<(u64, Stimulus)>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut p = Prog::new();
     let jump = p.hole(1);
@@ -271,6 +285,9 @@ pub fn stream(seed: u64) -> (Prog, Vec<(u64, Stimulus)>) {
     p.li(DATA, DATA_AREA)
         .li(AMO_BASE, DATA_AREA + 0x400)
         .li(AMO_ODD, DATA_AREA + 0x402);
+    if let Some((iterations, _)) = looped {
+        p.li(5, LOOP_COUNTER).li(6, iterations).i(isa::sw(6, 5, 0));
+    }
     for r in 1..32u8 {
         if !RESERVED.contains(&r) {
             p.li(r, rng.random());
@@ -283,14 +300,27 @@ pub fn stream(seed: u64) -> (Prog, Vec<(u64, Stimulus)>) {
         gen(&mut rng, &mut p, room, &mut targets);
     }
     p.hole(8);
+    if looped.is_some() {
+        // count the passes down in RAM and go round again
+        p.li(5, LOOP_COUNTER)
+            .i(isa::lw(6, 5, 0))
+            .i(isa::addi(6, 6, -1))
+            .i(isa::sw(6, 5, 0))
+            .i(isa::beq(6, 0, 8));
+        let here = p.here();
+        p.i(isa::jal(0, (p.addr_of(start) as i32) - (here as i32)));
+    }
     p.exit_pass();
     let mut stimuli = Vec::new();
     let mut level = false;
     let mut at = 0;
-    for _ in 0..20 {
+    let end = looped.map_or(0, |(_, cycles)| cycles);
+    let mut k = 0;
+    while k < 20 || at < end {
         at += rng.random_range(50..600);
         level = !level;
         stimuli.push((at, Stimulus::ExternalIrq(level)));
+        k += 1;
     }
     (p, stimuli)
 }

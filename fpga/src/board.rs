@@ -1,0 +1,294 @@
+//! The boards and what is built for them.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+/// The SoC clock the firmware is written for (115200 baud is divisor 8).
+pub const SOC_CLOCK_NOMINAL_MHZ: f64 = 14.7456;
+/// The SoC clock the boards make from their 12 MHz oscillators: the PLL's VCO at 12 MHz x 79
+/// = 948 MHz, divided by 32 (29.625 MHz) and halved by its second output.
+pub const SOC_CLOCK_MHZ: f64 = 12.0 * 79.0 / 64.0;
+
+/// An FPGA board the SoC is built for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Board {
+    /// iCEBreaker: iCE40 UltraPlus UP5K in the SG48 package (SPRAM, DSP blocks).
+    Up5k,
+    /// The iCE40-HX8K breakout board: HX8K in the CT256 package (no SPRAM, no DSP blocks).
+    Hx8k,
+}
+
+/// What is placed and routed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Design {
+    /// The whole SoC with its board glue (`fpga_soc.v` in the board's top).
+    Soc,
+    /// The core alone, its buses ending in flip-flops (`core_top.v`).
+    Core,
+}
+
+impl Board {
+    /// Every board, in report order.
+    pub const ALL: [Board; 2] = [Board::Up5k, Board::Hx8k];
+
+    /// The name used on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Board::Up5k => "up5k",
+            Board::Hx8k => "hx8k",
+        }
+    }
+
+    /// The board's name for people.
+    pub fn title(self) -> &'static str {
+        match self {
+            Board::Up5k => "iCEBreaker (iCE40UP5K-SG48)",
+            Board::Hx8k => "iCE40-HX8K breakout (iCE40HX8K-CT256)",
+        }
+    }
+
+    /// Device and package arguments of `nextpnr-ice40`.
+    pub fn nextpnr_device(self) -> [&'static str; 3] {
+        match self {
+            Board::Up5k => ["--up5k", "--package", "sg48"],
+            Board::Hx8k => ["--hx8k", "--package", "ct256"],
+        }
+    }
+
+    /// Whether the multiplier goes into DSP blocks (`synth_ice40 -dsp`).
+    pub fn has_dsp(self) -> bool {
+        matches!(self, Board::Up5k)
+    }
+
+    /// Bytes of program RAM in the board's SoC.
+    pub fn ram_bytes(self) -> u32 {
+        4 << self.ram_aw()
+    }
+
+    /// RAM word-address bits (`RAM_AW` of `fpga_soc`).
+    pub fn ram_aw(self) -> u32 {
+        match self {
+            Board::Up5k => 14,
+            Board::Hx8k => 10,
+        }
+    }
+
+    /// Bytes of the frame-grabber window on the board.
+    pub fn frame_window_bytes(self) -> u32 {
+        2048
+    }
+
+    fn top(self, design: Design) -> &'static str {
+        match (self, design) {
+            (Board::Up5k, Design::Soc) => "top_icebreaker",
+            (Board::Hx8k, Design::Soc) => "top_hx8k",
+            (_, Design::Core) => "core_top",
+        }
+    }
+
+    fn pcf(self, design: Design) -> &'static str {
+        match (self, design) {
+            (Board::Up5k, Design::Soc) => "icebreaker.pcf",
+            (Board::Hx8k, Design::Soc) => "hx8k.pcf",
+            (Board::Up5k, Design::Core) => "core_up5k.pcf",
+            (Board::Hx8k, Design::Core) => "core_hx8k.pcf",
+        }
+    }
+}
+
+impl fmt::Display for Board {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A board name that is not one of [`Board::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown board `{0}` (expected up5k or hx8k)")]
+pub struct UnknownBoard(pub String);
+
+impl FromStr for Board {
+    type Err = UnknownBoard;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Board::ALL
+            .into_iter()
+            .find(|b| b.name() == s)
+            .ok_or_else(|| UnknownBoard(s.to_owned()))
+    }
+}
+
+impl Design {
+    /// The name used in file names and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Design::Soc => "soc",
+            Design::Core => "core",
+        }
+    }
+}
+
+/// One build: a design on a board, its placer seed, and the clock it is timed at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Target {
+    /// The board.
+    pub board: Board,
+    /// The SoC, or the core alone.
+    pub design: Design,
+    /// nextpnr's seed (fixed, so runs are reproducible).
+    pub seed: u64,
+    /// The SoC clock is [`SOC_CLOCK_MHZ`] / 2^`clock_div_log2` (0 in every figure; more for
+    /// bring-up at a clock the design meets). The core alone ignores it.
+    pub clock_div_log2: u32,
+}
+
+impl Target {
+    /// The SoC at the SoC clock with seed 1.
+    pub fn soc(board: Board) -> Self {
+        Target {
+            board,
+            design: Design::Soc,
+            seed: 1,
+            clock_div_log2: 0,
+        }
+    }
+
+    /// The core alone with seed 1.
+    pub fn core(board: Board) -> Self {
+        Target {
+            design: Design::Core,
+            ..Target::soc(board)
+        }
+    }
+
+    /// The clock the design is timed at, in MHz.
+    pub fn clock_mhz(&self) -> f64 {
+        match self.design {
+            Design::Soc => SOC_CLOCK_MHZ / f64::from(1u32 << self.clock_div_log2.min(16)),
+            Design::Core => SOC_CLOCK_MHZ,
+        }
+    }
+
+    /// A directory name for this build's outputs.
+    pub fn dir_name(&self) -> String {
+        let div = match (self.design, self.clock_div_log2) {
+            (Design::Soc, n) if n > 0 => format!("-div{}", 1u32 << n.min(16)),
+            _ => String::new(),
+        };
+        format!(
+            "{}-{}{}-seed{}",
+            self.board.name(),
+            self.design.name(),
+            div,
+            self.seed
+        )
+    }
+
+    /// The top module.
+    pub fn top(&self) -> &'static str {
+        self.board.top(self.design)
+    }
+
+    /// The pin constraints file.
+    pub fn pcf(&self, sources: &Sources) -> PathBuf {
+        sources.fpga.join(self.board.pcf(self.design))
+    }
+
+    /// The Verilog files of the design, in reading order.
+    pub fn verilog(&self, sources: &Sources) -> Vec<PathBuf> {
+        let rtl = |f: &str| sources.rtl.join(f);
+        let fpga = |f: &str| sources.fpga.join(f);
+        match self.design {
+            Design::Core => vec![rtl("rv_core.v"), fpga("core_top.v")],
+            Design::Soc => {
+                let ram = match self.board {
+                    Board::Up5k => fpga("soc_ram_spram.v"),
+                    Board::Hx8k => rtl("soc_ram.v"),
+                };
+                let mut files = vec![
+                    rtl("soc.v"),
+                    ram,
+                    rtl("rv_core.v"),
+                    rtl("uart16550.v"),
+                    rtl("clint.v"),
+                    rtl("plic.v"),
+                ];
+                for f in [
+                    "fpga_soc.v",
+                    "spi_flash_loader.v",
+                    "uart_rx_line.v",
+                    "frame_capture.v",
+                ] {
+                    files.push(fpga(f));
+                }
+                files.push(fpga(&format!("{}.v", self.top())));
+                files
+            }
+        }
+    }
+}
+
+/// Where the Verilog lives.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Sources {
+    /// The SoC and core (`verilator-tb/rtl`).
+    pub rtl: PathBuf,
+    /// Board tops, FPGA-only modules and pin files (`verilator-tb/fpga`).
+    pub fpga: PathBuf,
+}
+
+impl Sources {
+    /// The directories of this checkout.
+    pub fn in_workspace() -> Self {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let tb = root.join("verilator-tb");
+        Sources {
+            rtl: tb.join("rtl"),
+            fpga: tb.join("fpga"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn board_names_round_trip_and_bad_names_are_refused() {
+        for b in Board::ALL {
+            assert_eq!(b.name().parse::<Board>(), Ok(b));
+        }
+        assert_eq!(
+            "ecp5".parse::<Board>(),
+            Err(UnknownBoard("ecp5".to_owned()))
+        );
+    }
+
+    #[test]
+    fn clock_is_the_pll_rate_divided() {
+        let mut t = Target::soc(Board::Up5k);
+        assert!((t.clock_mhz() - 14.8125).abs() < 1e-9);
+        t.clock_div_log2 = 2;
+        assert!((t.clock_mhz() - 3.703125).abs() < 1e-9);
+        assert_eq!(t.dir_name(), "up5k-soc-div4-seed1");
+        assert_eq!(Target::core(Board::Hx8k).dir_name(), "hx8k-core-seed1");
+        // 0.45 % above the nominal clock
+        let err = SOC_CLOCK_MHZ / SOC_CLOCK_NOMINAL_MHZ - 1.0;
+        assert!((err - 0.004527).abs() < 1e-5, "{err}");
+    }
+
+    #[test]
+    fn every_source_file_exists() {
+        let s = Sources::in_workspace();
+        for b in Board::ALL {
+            for t in [Target::soc(b), Target::core(b)] {
+                for f in t.verilog(&s).iter().chain([t.pcf(&s)].iter()) {
+                    assert!(f.is_file(), "{} is missing", f.display());
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,212 @@
+//! Benchmarks of the soft core on FPGAs and of its lockstep checking:
+//!
+//! - `fpga`: the SoC and the core alone on both boards (nextpnr seeds 1 to 3): LUT4, FF,
+//!   carry, RAM, SPRAM, DSP, logic cells and Fmax against the SoC clock and the goals; the
+//!   UP5K SoC at the bring-up clock.
+//! - `lockstep`: at least 10^8 instructions checked against the golden model: seeded random
+//!   streams (compressed instructions included) run over and over, and the firmware with
+//!   frames for its vision pipeline.
+
+use std::fmt::Write as _;
+
+use anyhow::{Context, Result};
+use fpga::{Board, Design, Outcome, Sources, Target};
+
+use crate::bench::{field, figures, ignored_test_named, verdict};
+
+/// Goals of the issue: Fmax of the SoC on each board, LUT4 of the core with C.
+const FMAX_GOAL_HX8K: f64 = 60.0;
+const FMAX_GOAL_UP5K: f64 = 24.0;
+const CORE_LUT_GOAL: u64 = 2000;
+/// Seeds of each placement.
+const SEEDS: [u64; 3] = [1, 2, 3];
+/// The bring-up clock divider of the UP5K row.
+const BRING_UP_DIV_LOG2: u32 = 2;
+/// Instructions the lockstep benchmark checks at least.
+const LOCKSTEP_GOAL: u64 = 100_000_000;
+
+fn goal(board: Board) -> f64 {
+    match board {
+        Board::Up5k => FMAX_GOAL_UP5K,
+        Board::Hx8k => FMAX_GOAL_HX8K,
+    }
+}
+
+fn row(o: &Outcome) -> String {
+    let t = &o.target;
+    let lc = o.logic_cells.map_or("?".into(), |u| u.describe());
+    let (fmax, met) = match (&o.placed, o.fmax_mhz()) {
+        (Some(_), Some(f)) => (
+            format!("{f:.2}"),
+            if o.timing_met() { "met" } else { "**missed**" },
+        ),
+        _ => ("not placed".into(), "**does not fit**"),
+    };
+    let dsp = o
+        .placed
+        .as_ref()
+        .and_then(|p| p.timing.dsp_bound_mhz(&p.clock))
+        .map_or(String::new(), |d| format!(" (DSP paths {d:.1})"));
+    format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {fmax}{dsp} | {:.4} | {met} |",
+        t.board.name(),
+        match (t.design, t.clock_div_log2) {
+            (Design::Soc, 0) => "SoC".to_owned(),
+            (Design::Soc, n) => format!("SoC, clock / {}", 1u32 << n),
+            (Design::Core, _) => "core".to_owned(),
+        },
+        t.seed,
+        o.cells.lut4,
+        o.cells.ff,
+        o.cells.carry,
+        o.cells.ram,
+        o.cells.spram,
+        o.cells.dsp,
+        lc,
+        o.target_mhz(),
+    )
+}
+
+/// Places and routes the SoC and the core on both boards and tabulates the figures.
+pub fn fpga() -> Result<String> {
+    crate::install::ensure_fpga_tools()?;
+    let out = crate::fpga::out_dir().join("bench");
+    let sources = Sources::in_workspace();
+    let mut targets = Vec::new();
+    for board in Board::ALL {
+        for seed in SEEDS {
+            targets.push(Target {
+                seed,
+                ..Target::soc(board)
+            });
+        }
+        for seed in SEEDS {
+            targets.push(Target {
+                seed,
+                ..Target::core(board)
+            });
+        }
+    }
+    targets.push(Target {
+        clock_div_log2: BRING_UP_DIV_LOG2,
+        ..Target::soc(Board::Up5k)
+    });
+    let mut outcomes = Vec::new();
+    for t in &targets {
+        println!("placing and routing {}", t.dir_name());
+        let o = fpga::build(t, &sources, &out).with_context(|| t.dir_name())?;
+        print!("{}", fpga::summary(&o));
+        outcomes.push(o);
+    }
+
+    let mut md = String::from("## The soft core on iCE40 FPGAs\n\n");
+    let _ = writeln!(
+        md,
+        "`synth_ice40 -abc9` (`-dsp` on UP5K), nextpnr-ice40 timed at the SoC clock ({:.4} MHz, the boards' PLL), three placer seeds. Fmax is nextpnr's for the SoC clock, or the bound of the paths through the DSP blocks when lower (nextpnr 0.4 times a combinational DSP block as registered; docs/fpga.md). LUT4, FF and carry are yosys's cells; logic cells are nextpnr's after packing.\n",
+        fpga::SOC_CLOCK_MHZ
+    );
+    let _ = writeln!(
+        md,
+        "| board | design | seed | LUT4 | FF | carry | RAM | SPRAM | DSP | logic cells | Fmax (MHz) | clock (MHz) | timing |"
+    );
+    let _ = writeln!(
+        md,
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|---:|---|"
+    );
+    for o in &outcomes {
+        let _ = writeln!(md, "{}", row(o));
+    }
+    let _ = writeln!(
+        md,
+        "\n| goal | measured (best seed) | verdict |\n|---|---|---|"
+    );
+    for board in Board::ALL {
+        let best = outcomes
+            .iter()
+            .filter(|o| {
+                o.target.board == board
+                    && o.target.design == Design::Soc
+                    && o.target.clock_div_log2 == 0
+            })
+            .filter_map(Outcome::fmax_mhz)
+            .fold(None, |m: Option<f64>, f| Some(m.map_or(f, |m| m.max(f))));
+        let _ = writeln!(
+            md,
+            "| SoC Fmax on {} >= {} MHz | {} | {} |",
+            board.name(),
+            goal(board),
+            best.map_or("not placed".into(), |f| format!("{f:.2} MHz")),
+            verdict(best.is_some_and(|f| f >= goal(board)))
+        );
+    }
+    if let Some(core) = outcomes
+        .iter()
+        .find(|o| o.target.design == Design::Core && o.target.board == Board::Up5k)
+    {
+        let _ = writeln!(
+            md,
+            "| core with C <= {CORE_LUT_GOAL} LUT4 (UP5K, multiplier in DSP blocks) | {} | {} |",
+            core.cells.lut4,
+            verdict(core.cells.lut4 <= CORE_LUT_GOAL)
+        );
+    }
+    let _ = write!(
+        md,
+        "\nReproduce: `cargo xtask bench --only fpga`; one build: `cargo xtask fpga --board up5k --seed 1` (`--core` for the core alone, `--clock-div 2` for the bring-up clock). Outputs, logs and reports in `target/fpga/`."
+    );
+    Ok(md)
+}
+
+/// The long lockstep run: random streams and the firmware, with the golden model.
+pub fn lockstep() -> Result<String> {
+    let random = ignored_test_named(
+        "verilator-tb",
+        "random",
+        "random_streams_in_lockstep_long",
+        &[],
+    )?;
+    let r = figures(&random, "lockstep-random").context("no figures from the random streams")?;
+    let elf = crate::fw::build("softcore", true)?;
+    let firmware = ignored_test_named(
+        "verilator-tb",
+        "firmware",
+        "firmware_in_lockstep_long",
+        &[("VTB_FIRMWARE", elf.as_os_str())],
+    )?;
+    let f = figures(&firmware, "lockstep-firmware").context("no figures from the firmware")?;
+    let (ri, rc, rw) = (
+        field(&r, "instructions")?,
+        field(&r, "compressed")?,
+        field(&r, "wall_s")?,
+    );
+    let (fi, fw, frames) = (
+        field(&f, "instructions")?,
+        field(&f, "wall_s")?,
+        field(&f, "frames")?,
+    );
+    let total = ri + fi;
+    let mut md = String::from("## Lockstep with the golden model\n\n");
+    let _ = writeln!(
+        md,
+        "| run | instructions checked | mismatches | wall time |"
+    );
+    let _ = writeln!(md, "|---|---:|---:|---:|");
+    let _ = writeln!(
+        md,
+        "| random streams (360 seeds x 100 passes; {rc:.0} compressed) | {ri:.0} | 0 | {rw:.0} s |"
+    );
+    let _ = writeln!(
+        md,
+        "| firmware + lbc-emu + ground station, {frames:.0} camera frames | {fi:.0} | 0 | {fw:.0} s |"
+    );
+    let _ = writeln!(
+        md,
+        "| total (goal >= {LOCKSTEP_GOAL}) | **{total:.0}** | 0 | {} |",
+        verdict(total >= LOCKSTEP_GOAL as f64)
+    );
+    let _ = write!(
+        md,
+        "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored random_streams_in_lockstep_long`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
+    );
+    Ok(md)
+}

@@ -1,0 +1,82 @@
+//! `cargo xtask fpga`: the SoC on the iCE40 boards, synthesised, placed, routed, timed and
+//! packed into bitstreams, with the program image the boards load from their SPI flash.
+//! Outputs go to `target/fpga/`; see docs/fpga.md.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use fpga::{Board, Design, Sources, Target};
+
+use crate::{install, stage, workspace_root};
+
+/// Options of `cargo xtask fpga`.
+#[derive(Debug, clap::Args)]
+pub struct FpgaArgs {
+    /// Board to build for (both when left out).
+    #[arg(long, value_parser = parse_board)]
+    board: Option<Board>,
+    /// nextpnr's placer seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Run the SoC at its clock divided by 2^N (bring-up where timing is not met at the full
+    /// clock; 0 is the SoC clock, 14.8125 MHz).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=3))]
+    clock_div: u32,
+    /// Build the core alone instead of the SoC (area and clock figures; no bitstream to use).
+    #[arg(long)]
+    core: bool,
+}
+
+fn parse_board(s: &str) -> Result<Board, String> {
+    s.parse::<Board>().map_err(|e| e.to_string())
+}
+
+/// Where the flow's outputs go.
+pub fn out_dir() -> PathBuf {
+    workspace_root().join("target/fpga")
+}
+
+/// Builds the requested targets; fails when one does not fit or misses its clock.
+pub fn run(args: FpgaArgs) -> Result<()> {
+    install::ensure_fpga_tools()?;
+    let boards: Vec<Board> = args.board.map_or(Board::ALL.to_vec(), |b| vec![b]);
+    let out = out_dir();
+    let sources = Sources::in_workspace();
+    let mut failed = Vec::new();
+    for board in boards {
+        let target = Target {
+            board,
+            design: if args.core { Design::Core } else { Design::Soc },
+            seed: args.seed,
+            clock_div_log2: args.clock_div,
+        };
+        stage(&format!("{} {}", board.title(), target.design.name()));
+        let outcome = fpga::build(&target, &sources, &out)
+            .with_context(|| format!("building {}", target.dir_name()))?;
+        print!("{}", fpga::summary(&outcome));
+        if target.design == Design::Soc {
+            let image = out.join(format!("{}-program.bin", target.dir_name()));
+            std::fs::write(&image, fpga::demo::image(board, args.clock_div))
+                .with_context(|| format!("writing {}", image.display()))?;
+            if let Some(p) = &outcome.placed {
+                println!(
+                    "  program image: {}\n  flash both: iceprog {}  then  iceprog -o 1M {}",
+                    image.display(),
+                    p.bitstream.display(),
+                    image.display()
+                );
+            }
+        }
+        if !outcome.timing_met() {
+            failed.push(target.dir_name());
+        }
+    }
+    if !failed.is_empty() {
+        bail!(
+            "not placed, or timing not met at the clock: {} (outputs in {})",
+            failed.join(", "),
+            out.display()
+        );
+    }
+    Ok(())
+}
