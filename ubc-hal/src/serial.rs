@@ -492,19 +492,13 @@ impl<B: RegisterBus + Send + 'static> Port<B> {
     /// `buf.len()`, without waiting. Returns how many, and when the bytes end with a
     /// delimiter whose arrival was stamped, the timer tick (low 32 bits) it arrived at.
     pub fn read_frame(&mut self, buf: &mut [u8]) -> (usize, Option<u32>) {
-        let mut n = 0;
-        let mut end = None;
-        for slot in buf.iter_mut() {
-            let Some(b) = self.pop() else {
-                break;
-            };
-            *slot = b;
-            n += 1;
-            if Some(b) == self.delimiter {
-                end = self.end_tick(self.read_pos.wrapping_sub(1));
-                break;
-            }
-        }
+        let (n, found) = self.rx.dequeue_until(buf, self.delimiter);
+        self.read_pos = self.read_pos.wrapping_add(n as u32);
+        let end = if found {
+            self.end_tick(self.read_pos.wrapping_sub(1))
+        } else {
+            None
+        };
         self.resume_rx_if_room();
         (n, end)
     }
