@@ -85,6 +85,32 @@ impl<T: Copy, const N: usize> Producer<T, N> {
         Ok(())
     }
 
+    /// Free slots (the consumer may free more meanwhile, never fewer).
+    pub fn room(&self) -> usize {
+        N - self
+            .ring
+            .tail
+            .load(Ordering::Relaxed)
+            .wrapping_sub(self.ring.head.load(Ordering::Acquire))
+    }
+
+    /// Appends as many of `items` as fit, in order; returns how many. One pass with the
+    /// indices read and written once.
+    pub fn enqueue_slice(&mut self, items: &[T]) -> usize {
+        let tail = self.ring.tail.load(Ordering::Relaxed);
+        let room = N - tail.wrapping_sub(self.ring.head.load(Ordering::Acquire));
+        let n = items.len().min(room);
+        for (k, &item) in items.iter().take(n).enumerate() {
+            // SAFETY: the `room` slots from `tail` are free and only this producer writes free
+            // slots; the consumer does not read them before `tail` moves past them below.
+            unsafe { self.ring.slot(tail.wrapping_add(k)).write(item) };
+        }
+        self.ring
+            .tail
+            .store(tail.wrapping_add(n), Ordering::Release);
+        n
+    }
+
     /// Whether there is room for one more item.
     pub fn ready(&self) -> bool {
         self.ring.len() < N
@@ -264,6 +290,19 @@ mod tests {
             }
         }
         writer.join().unwrap();
+    }
+
+    #[test]
+    fn enqueue_slice_takes_what_fits() {
+        let (mut p, mut c) = ring::<4>();
+        assert_eq!(p.room(), 4);
+        assert_eq!(p.enqueue_slice(&[1, 2, 3]), 3);
+        assert_eq!(p.room(), 1);
+        assert_eq!(p.enqueue_slice(&[4, 5, 6]), 1);
+        assert_eq!(p.enqueue_slice(&[7]), 0);
+        let out: Vec<u8> = std::iter::from_fn(|| c.dequeue()).collect();
+        assert_eq!(out, [1, 2, 3, 4]);
+        assert_eq!(p.enqueue_slice(&[]), 0);
     }
 
     #[test]

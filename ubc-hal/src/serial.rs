@@ -300,29 +300,48 @@ impl<B: RegisterBus + Send + 'static> PortState<B> {
         let mut ends = [0u32; ENDS_PER_ROUND];
         let mut n_ends = 0;
         let mut taken: u32 = 0;
+        // The bytes go into the ring a FIFO's worth at a time, in one pass each.
+        let mut batch = [0u8; FIFO_DEPTH];
+        let mut room = h.rx.room();
         loop {
-            let lsr = h.uart.lsr();
-            self.record_line_status(lsr);
-            if !lsr.data_ready() {
-                break;
+            let mut n = 0;
+            let mut more = false;
+            while n < batch.len() {
+                let lsr = h.uart.lsr();
+                self.record_line_status(lsr);
+                if !lsr.data_ready() {
+                    break;
+                }
+                if n >= room {
+                    more = true;
+                    break;
+                }
+                let byte = h.uart.read_rbr();
+                if let Some(slot) = batch.get_mut(n) {
+                    *slot = byte;
+                }
+                if Some(byte) == delimiter {
+                    if let Some(slot) = ends.get_mut(n_ends) {
+                        *slot = taken + n as u32;
+                        n_ends += 1;
+                    }
+                }
+                n += 1;
             }
-            if !h.rx.ready() {
+            // There is room for them (checked above), so all go in.
+            let put = h.rx.enqueue_slice(batch.get(..n).unwrap_or_default());
+            taken += put as u32;
+            room -= put;
+            if more {
                 h.ier.set_rx_available(false);
                 h.uart.set_ier(h.ier);
                 self.rx_held.store(true, Ordering::Release);
                 bump(&self.counters.rx_ring_full, 1);
                 break;
             }
-            let byte = h.uart.read_rbr();
-            // The queue has room (checked above), so this cannot fail.
-            let _ = h.rx.enqueue(byte);
-            if Some(byte) == delimiter {
-                if let Some(slot) = ends.get_mut(n_ends) {
-                    *slot = taken;
-                    n_ends += 1;
-                }
+            if n < batch.len() {
+                break;
             }
-            taken += 1;
         }
         if let (Some(s), Some(last)) = (h.stamping, ends.get(..n_ends).and_then(|e| e.last())) {
             // The last byte taken arrived now (trigger level) or one timeout ago.
