@@ -375,7 +375,7 @@ fn fw_decode_table(figures: &[StageFigure]) -> Result<String> {
         md,
         "STREAM at 30 Hz with every valid variable (format `0x0FDF9F1F` = all 28 bits except \
          the NOT-IN-USE mask `0x002060E0`), {} messages of {} bytes, counted with `minstret` \
-         on RV32IMA under `qemu-system-riscv32 -icount shift=0` (release build, opt-level \"s\").\n",
+         on RV32IMAC under `qemu-system-riscv32 -icount shift=0` (release build, opt-level \"s\").\n",
         headline.frames,
         headline.bytes.checked_div(headline.frames).unwrap_or(0)
     );
@@ -513,7 +513,7 @@ fn fw_vision_table(figures: &[StageFigure], text_size: u64) -> Result<String> {
         md,
         "A rendered 640x480 RGB332 view with four cars in sight (`arena::camera_feed::bench_scene`), \
          published by the host into the frame-grabber window (QEMU RAM shared file) and read in \
-         place by `bench_vision` through the board's frame grabber; `minstret` on RV32IMA under \
+         place by `bench_vision` through the board's frame grabber; `minstret` on RV32IMAC under \
          `qemu-system-riscv32 -icount shift=0`, release build (opt-level \"s\"). The firmware's \
          blobs equal the host pipeline's exactly (checked by the run).\n"
     );
