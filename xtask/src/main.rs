@@ -2,7 +2,7 @@
 //!
 //! `demo` runs the main job, `test` runs every test, `fw` builds the firmware (or a program,
 //! `--bin`), `new-program` makes a program from the template, `qemu` boots the firmware,
-//! `bench` measures. Each installs what it needs first (see `install`).
+//! `bench` measures, `size` says where the firmware's text goes. Each installs what it needs first (see `install`).
 
 mod bench;
 mod demo;
@@ -10,6 +10,7 @@ mod fw;
 mod install;
 mod program;
 mod qemu;
+mod size;
 mod test;
 
 use std::path::PathBuf;
@@ -55,6 +56,15 @@ enum Cmd {
     Qemu(qemu::QemuArgs),
     /// Run the benchmarks and print their figures.
     Bench(bench::BenchArgs),
+    /// Where a firmware image's text goes, by source crate and by symbol group.
+    Size {
+        /// The ELF (default: the stock firmware, built for `softcore`).
+        #[arg(long)]
+        elf: Option<PathBuf>,
+        /// Instead, the code of this crate (e.g. `maneuvers`, `core`) by source file.
+        #[arg(long, value_name = "CRATE")]
+        files: Option<String>,
+    },
 }
 
 fn main() {
@@ -74,6 +84,7 @@ fn main() {
         Cmd::NewProgram { name } => program::create(&fw::app_dir(), &name),
         Cmd::Qemu(args) => qemu::run(args),
         Cmd::Bench(args) => bench::run(args),
+        Cmd::Size { elf, files } => size::run(elf.as_deref(), files.as_deref()),
     };
     if let Err(err) = result {
         eprintln!("xtask: error: {err:#}");
