@@ -320,6 +320,20 @@ fn formation_processor_load() {
         sum_load += load;
         sum_awake += per_step;
     }
+    // Where the first car's cycles went in the window.
+    let (id, k) = (ids[0], 0);
+    let mut top: Vec<(u64, String)> = profile_of(&w, id)
+        .into_iter()
+        .map(|(f, c)| (c - prof_before[k].get(&f).copied().unwrap_or(0), f))
+        .filter(|(c, f)| *c > 0 && f != "(asleep in WFI)")
+        .collect();
+    top.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+    println!("\ncar {id}, largest awake shares in the window:\n");
+    println!("| function | cycles per control step |");
+    println!("|---|---:|");
+    for (c, f) in top.iter().take(12) {
+        println!("| `{f}` | {} |", c / (WINDOW_S * CONTROL_HZ));
+    }
     let mean_load = sum_load / N as f64;
     let mean_step = sum_awake / N as u64;
     println!(
