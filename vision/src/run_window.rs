@@ -292,6 +292,50 @@ impl Header {
     }
 }
 
+/// The writer's side of the protocol for a host that emulates the unit (QEMU): publishes one
+/// frame's run words into the buffer that is not ready, through `put(offset, bytes)` (each call
+/// one write, made in this order): `buffer_seq = WRITING`, the words, the buffer's count,
+/// dropped runs and size, then `buffer_seq`, `ready` and `sequence`. `header` is the writer's
+/// copy, updated; the new sequence is returned. Words beyond the capacity are not written.
+pub fn publish<E>(
+    header: &mut Header,
+    words: &[u32],
+    dropped: u32,
+    size: (u16, u16),
+    mut put: impl FnMut(usize, &[u8]) -> Result<(), E>,
+) -> Result<u32, E> {
+    let w = if header.sequence == 0 {
+        0
+    } else {
+        ((header.ready & 1) ^ 1) as usize
+    };
+    let n = words.len().min(header.capacity as usize);
+    header.buffer_seq[w] = WRITING;
+    put(field::BUFFER_SEQ[w].start, &WRITING.to_le_bytes())?;
+    let mut bytes = [0u8; 256];
+    for (k, chunk) in words[..n].chunks(bytes.len() / 4).enumerate() {
+        for (b, word) in bytes.chunks_exact_mut(4).zip(chunk) {
+            b.copy_from_slice(&word.to_le_bytes());
+        }
+        put(BUFFER_OFFSET[w] + k * 256, &bytes[..4 * chunk.len()])?;
+    }
+    let next = next_sequence(header.sequence);
+    header.count[w] = n as u32;
+    header.dropped[w] = dropped;
+    header.size[w] = size;
+    put(field::COUNT[w].start, &(n as u32).to_le_bytes())?;
+    put(field::DROPPED[w].start, &dropped.to_le_bytes())?;
+    let sz = u32::from(size.0) | u32::from(size.1) << 16;
+    put(field::SIZE[w].start, &sz.to_le_bytes())?;
+    put(field::BUFFER_SEQ[w].start, &next.to_le_bytes())?;
+    put(field::READY.start, &(w as u32).to_le_bytes())?;
+    put(field::SEQUENCE.start, &next.to_le_bytes())?;
+    header.buffer_seq[w] = next;
+    header.ready = w as u32;
+    header.sequence = next;
+    Ok(next)
+}
+
 /// The sequence after `s`: never 0 (nothing published) or [`WRITING`].
 pub const fn next_sequence(s: u32) -> u32 {
     if s >= WRITING - 1 {
@@ -457,6 +501,28 @@ mod tests {
                 found: WRITING
             })
         );
+    }
+
+    #[test]
+    fn published_frames_alternate_buffers_and_read_back() {
+        let mut mem = [0u8; WINDOW_LEN];
+        let mut h = Header::new(8);
+        h.emit(&mut mem);
+        let mut put = |off: usize, b: &[u8]| -> Result<(), ()> {
+            mem.get_mut(off..off + b.len())
+                .ok_or(())?
+                .copy_from_slice(b);
+            Ok(())
+        };
+        assert_eq!(publish(&mut h, &[1, 2, 3], 0, (640, 480), &mut put), Ok(1));
+        assert_eq!(publish(&mut h, &[4; 12], 5, (640, 480), &mut put), Ok(2));
+        let got = Header::parse(&mem).unwrap();
+        assert_eq!(got, h);
+        let t = got.ticket().unwrap();
+        assert_eq!((t.index, t.sequence, t.count, t.dropped), (1, 2, 8, 5));
+        assert_eq!(&mem[0x4000..0x400c], &[1, 0, 0, 0, 2, 0, 0, 0, 3, 0, 0, 0]);
+        assert_eq!(&mem[t.range()][..4], &[4, 0, 0, 0]);
+        assert_eq!(got.count, [3, 8]);
     }
 
     #[test]
