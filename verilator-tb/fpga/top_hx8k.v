@@ -55,7 +55,7 @@ module top_hx8k #(
         end
     endgenerate
 
-    fpga_soc #(.RAM_AW(10), .FMEM_AW(9)) soc (
+    fpga_soc #(.RAM_AW(10), .FMEM_AW(9), .VIS_CAP_AW(8)) soc (
         .clk(soc_clk), .pll_locked(locked),
         .uart0_rxd(rx), .uart0_txd(tx), .uart1_rxd(uart1_rx), .uart1_txd(uart1_tx),
         .flash_sck(flash_sck), .flash_csn(flash_csb), .flash_mosi(flash_mosi),
