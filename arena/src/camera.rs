@@ -168,7 +168,7 @@ impl SyntheticCamera {
         [
             pose.x_mm + d * c,
             pose.y_mm + d * s,
-            self.config.model.height_mm,
+            f32::from(self.config.model.height_mm),
         ]
     }
 
@@ -196,9 +196,9 @@ impl SyntheticCamera {
             .filter(|c| c.id != viewer.id)
             .filter_map(|c| self.car_in_view(origin, viewer, c))
             .collect();
-        let radius = self.config.marker.diameter_mm * 0.5;
-        let m_lo = self.config.marker.bottom_mm;
-        let m_hi = m_lo + self.config.marker.height_mm;
+        let radius = f32::from(self.config.marker.diameter_mm) * 0.5;
+        let m_lo = f32::from(self.config.marker.bottom_mm);
+        let m_hi = m_lo + f32::from(self.config.marker.height_mm);
         let [hl, hw, bh] = [CAR_BODY_MM[0] * 0.5, CAR_BODY_MM[1] * 0.5, CAR_BODY_MM[2]];
         let noise = i16::from(self.config.noise);
         let span = 2 * noise as u32 + 1;
@@ -303,14 +303,15 @@ impl SyntheticCamera {
         let m = &self.config.model;
         let (s, c) = car.yaw_rad.sin_cos();
         let (vs, vc) = viewer.yaw_rad.sin_cos();
-        let top = self.config.marker.bottom_mm + self.config.marker.height_mm;
-        let ext = (CAR_BODY_MM[0] * 0.5).max(self.config.marker.diameter_mm * 0.5);
+        let top = f32::from(self.config.marker.bottom_mm) + f32::from(self.config.marker.height_mm);
+        let radius = f32::from(self.config.marker.diameter_mm) * 0.5;
+        let ext = (CAR_BODY_MM[0] * 0.5).max(radius);
         let (w, h) = (usize::from(m.width), usize::from(m.height));
         let (mut u0, mut u1, mut v0, mut v1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
         for &(fx, fy) in &[(-1.0f32, -1.0f32), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)] {
             // Corners of the box (and marker) footprint, in world coordinates.
             let lx = fx * ext;
-            let ly = fy * (CAR_BODY_MM[1] * 0.5).max(self.config.marker.diameter_mm * 0.5);
+            let ly = fy * (CAR_BODY_MM[1] * 0.5).max(radius);
             let wx = car.x_mm + lx * c - ly * s - origin[0];
             let wy = car.y_mm + lx * s + ly * c - origin[1];
             for z in [0.0, top] {

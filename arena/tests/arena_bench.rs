@@ -10,6 +10,9 @@
 //!   model's (`radio_sim`) for the same schedule and car count, next to it.
 //! - `qemu_realtime_capacity`: N QEMU cars in real time (`ARENA_QEMU_N`, default 1,4,8,16):
 //!   whether each keeps its 30 Hz stream and answers its console.
+//! - `formation_processor_load`: the 16-car formation of `virtual_time_speed` (two wedges of
+//!   8), every car's processor profiled: each car's load and awake cycles per control step
+//!   over 10 s of the maneuver, and the share of soft-float arithmetic in them.
 //!
 //! Lines starting with `figures:` are what `cargo xtask bench` reads.
 
@@ -52,10 +55,20 @@ fn grid(n: usize) -> Vec<CarSpec> {
 }
 
 fn world(engine: EngineKind, cars: Vec<CarSpec>, threads: usize) -> World {
+    world_profiled(engine, cars, threads, Vec::new())
+}
+
+fn world_profiled(
+    engine: EngineKind,
+    cars: Vec<CarSpec>,
+    threads: usize,
+    profile_cars: Vec<u8>,
+) -> World {
     let elf = engine.default_firmware().expect("firmware ELF");
     let mut cfg = WorldConfig::new(elf, cars);
     cfg.engine = engine;
     cfg.threads = threads;
+    cfg.profile_cars = profile_cars;
     World::start(&cfg).expect("world starts")
 }
 
@@ -81,6 +94,24 @@ fn bring_up(w: &mut World, limit: Duration) -> usize {
     up
 }
 
+/// Groups of up to 8 cars (by ID) in a wedge behind the first of each, every leader sent to
+/// (300, 700).
+fn start_wedges(w: &mut World) {
+    let ids = w.ids().to_vec();
+    for group in ids.chunks(8) {
+        let leader = group[0];
+        let p = maneuvers::Formation::params(Shape::Wedge, leader, None, 60, 100).unwrap();
+        for &id in group.iter().skip(1).chain(std::iter::once(&leader)) {
+            let _ = w.request(id, &Request::GroupStart(p), Duration::from_secs(5));
+        }
+        let _ = w.request(
+            leader,
+            &Request::GroupWaypoint { x: 300, y: 700 },
+            Duration::from_secs(5),
+        );
+    }
+}
+
 fn mean_load(w: &World) -> f64 {
     let n = w.ids().len();
     (0..n)
@@ -104,19 +135,7 @@ fn virtual_time_speed() {
         let t = Instant::now();
         let up = bring_up(&mut w, Duration::from_secs(60));
         let bring = w.now().as_secs_f64() / t.elapsed().as_secs_f64();
-        let ids = w.ids().to_vec();
-        for group in ids.chunks(8) {
-            let leader = group[0];
-            let p = maneuvers::Formation::params(Shape::Wedge, leader, None, 60, 100).unwrap();
-            for &id in group.iter().skip(1).chain(std::iter::once(&leader)) {
-                let _ = w.request(id, &Request::GroupStart(p), Duration::from_secs(5));
-            }
-            let _ = w.request(
-                leader,
-                &Request::GroupWaypoint { x: 300, y: 700 },
-                Duration::from_secs(5),
-            );
-        }
+        start_wedges(&mut w);
         let window = Duration::from_secs(10);
         let (w0, t0) = (w.now(), Instant::now());
         w.run_until(w0 + window);
@@ -240,4 +259,89 @@ fn qemu_realtime_capacity() {
             lbc.0, fixes.0, states.0, states.1
         );
     }
+}
+
+/// Whether a profiled function is soft-float arithmetic: `compiler_builtins`' `f32`/`f64`
+/// routines and the `f32` helpers of `maneuvers` (`fmath`, `geom`).
+fn soft_float(function: &str) -> bool {
+    let name = function.rsplit("::").next().unwrap_or(function);
+    let builtin = name.starts_with("__")
+        && [
+            "sf3", "df3", "sf2", "df2", "sfsi", "sfdi", "sisf", "unsisf", "sidf",
+        ]
+        .iter()
+        .any(|end| name.ends_with(end));
+    builtin
+        || function.contains("compiler_builtins::float")
+        || function.contains("maneuvers::fmath")
+        || function.contains("maneuvers::geom")
+}
+
+/// Cycles by function of car `id` so far.
+fn profile_of(w: &World, id: u8) -> std::collections::HashMap<String, u64> {
+    w.profile(id)
+        .unwrap_or_default()
+        .into_iter()
+        .map(|(cycles, _, f)| (f, cycles))
+        .collect()
+}
+
+#[test]
+#[ignore = "benchmark: minutes; run explicitly"]
+fn formation_processor_load() {
+    const N: usize = 16;
+    const WINDOW_S: u64 = 10;
+    const CONTROL_HZ: u64 = 30;
+    let cars = grid(N);
+    let ids: Vec<u8> = cars.iter().map(|c| c.id).collect();
+    let mut w = world_profiled(EngineKind::Iss, cars, 2, ids.clone());
+    let up = bring_up(&mut w, Duration::from_secs(60));
+    assert_eq!(up, N, "every car up");
+    start_wedges(&mut w);
+    let before: Vec<_> = (0..N).map(|k| w.core_load(k).expect("load")).collect();
+    let prof_before: Vec<_> = ids.iter().map(|&id| profile_of(&w, id)).collect();
+    w.run_for(Duration::from_secs(WINDOW_S));
+    println!("| car | processor load | awake cycles per control step | of which soft float |");
+    println!("|---:|---:|---:|---:|");
+    let (mut sum_load, mut sum_awake) = (0.0, 0u64);
+    for (k, &id) in ids.iter().enumerate() {
+        let after = w.core_load(k).expect("load");
+        let cycles = after.cycles - before[k].cycles;
+        let awake = after.awake_cycles - before[k].awake_cycles;
+        let load = awake as f64 / cycles.max(1) as f64;
+        let per_step = awake / (WINDOW_S * CONTROL_HZ);
+        let soft: u64 = profile_of(&w, id)
+            .iter()
+            .filter(|(f, _)| soft_float(f))
+            .map(|(f, c)| c - prof_before[k].get(f).copied().unwrap_or(0))
+            .sum();
+        println!(
+            "| {id} | {:.1} % | {per_step} | {:.1} % |",
+            100.0 * load,
+            100.0 * soft as f64 / awake.max(1) as f64
+        );
+        sum_load += load;
+        sum_awake += per_step;
+    }
+    // Where the first car's cycles went in the window.
+    let (id, k) = (ids[0], 0);
+    let mut top: Vec<(u64, String)> = profile_of(&w, id)
+        .into_iter()
+        .map(|(f, c)| (c - prof_before[k].get(&f).copied().unwrap_or(0), f))
+        .filter(|(c, f)| *c > 0 && f != "(asleep in WFI)")
+        .collect();
+    top.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+    println!("\ncar {id}, largest awake shares in the window:\n");
+    println!("| function | cycles per control step |");
+    println!("|---|---:|");
+    for (c, f) in top.iter().take(12) {
+        println!("| `{f}` | {} |", c / (WINDOW_S * CONTROL_HZ));
+    }
+    let mean_load = sum_load / N as f64;
+    let mean_step = sum_awake / N as u64;
+    println!(
+        "\nmean: load {:.1} %, {mean_step} awake cycles per control step",
+        100.0 * mean_load
+    );
+    println!("figures: mode=profile cars={N} load={mean_load:.4} awake_per_step={mean_step}");
 }

@@ -3,35 +3,29 @@
 
 use heapless::Vec;
 
-use crate::drive::{Drive, DriveConfig, Sv, STEER_LIMIT};
-use crate::fmath::{cos, round};
-use crate::geom::{clampf, mrad_to_rad, Vec2};
-use crate::law::{GoalArea, Guidance, LawInput, LawOptions, Me, Neighbours, Plan, Waypoint};
+use crate::drive::{predict, Drive, DriveConfig, Sv, STEER_LIMIT};
+use crate::fixed::{fx, fx_from_f32, mul_shift, sin_cos, IVec2};
+use crate::law::{GoalArea, Guidance, LawInput, LawOptions, Neighbours, Plan, Waypoint};
 use crate::laws::AnyLaw;
-use crate::safety::{field, gate, Conflict, Obstacle, SafetyConfig};
-use crate::{
-    Command, Inputs, ManeuverParams, Neighbour, Output, Phase, Status, ARENA_X_MAX, ARENA_Y_MAX,
-    MM_PER_UNIT, STEER_LIMIT_MRAD,
-};
+use crate::safety::{field, gate, Conflict, Ego, Obstacle, SafetyConfig};
+use crate::{Command, Inputs, ManeuverParams, Neighbour, Output, Phase, Status};
 
 /// Neighbours considered per period; more are ignored (16 cars share the radio schedule).
 pub const MAX_NEIGHBOURS: usize = 16;
-/// Slow-down gain towards a [`Guidance::Point`], 1/s.
-const POINT_GAIN: f32 = 1.0;
 /// How long a reverse manoeuvre chosen by the avoidance is kept, control periods (0.5 s).
 const ESCAPE_PERIODS: u8 = 15;
 /// Weight of the heading improvement against the distance gained when a refused command is
 /// replaced, tracking units per unit of cosine.
-const ALIGN_WEIGHT_UNITS: f32 = 60.0;
+const ALIGN_WEIGHT_UNITS: i32 = 60;
 /// A car that wants to move but makes no progress for this long is stuck, us.
 const STUCK_US: u64 = 3_000_000;
 /// Drop of the law's error that counts as progress, tracking units (20 mm).
-const STUCK_PROGRESS_UNITS: f32 = 8.0;
+const STUCK_PROGRESS_UNITS: u16 = 8;
 /// LBC limit on `MOVE_SV` velocity, mm/s.
-const MAX_SV_MM_S: f32 = 2000.0;
+const MAX_SV_MM_S: i16 = 2000;
 
 /// Controller configuration.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[non_exhaustive]
 pub struct ControllerConfig {
     /// Avoidance.
@@ -44,10 +38,10 @@ pub struct ControllerConfig {
 }
 
 /// What the deadlock breaker watches.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Progress {
-    /// Smallest law error since `since_us`.
-    best: f32,
+    /// Smallest law error since `since_us`, tracking units.
+    best: u16,
     since_us: u64,
     /// Periods since `since_us`, and how many of them the avoidance changed.
     periods: u16,
@@ -59,7 +53,7 @@ struct Progress {
 impl Default for Progress {
     fn default() -> Self {
         Self {
-            best: f32::MAX,
+            best: u16::MAX,
             since_us: 0,
             periods: 0,
             avoided: 0,
@@ -91,14 +85,15 @@ pub struct Controller {
 impl Controller {
     /// An idle controller.
     pub fn new(cfg: ControllerConfig) -> Self {
-        let m = cfg.safety.goal_margin_units();
+        let (x_min, y_min) = cfg.safety.clamp_goal(0, 0);
+        let (x_max, y_max) = cfg.safety.clamp_goal(u16::MAX, u16::MAX);
         Self {
             cfg,
             area: GoalArea {
-                x_min: m,
-                x_max: ARENA_X_MAX.saturating_sub(m),
-                y_min: m,
-                y_max: ARENA_Y_MAX.saturating_sub(m),
+                x_min,
+                x_max,
+                y_min,
+                y_max,
             },
             law: None,
             options: LawOptions::DEFAULT,
@@ -161,12 +156,7 @@ impl Controller {
 
     /// One control period.
     pub fn step(&mut self, inputs: &Inputs<'_>) -> Output {
-        let me = Me {
-            id: inputs.id,
-            pos: Vec2::new(f32::from(inputs.own.x), f32::from(inputs.own.y)),
-            heading: mrad_to_rad(inputs.own.heading_mrad),
-            speed: f32::from(inputs.own.velocity_mm_s),
-        };
+        let me = Ego::new(inputs.id, &inputs.own);
         let mut fresh: Vec<Neighbour, MAX_NEIGHBOURS> = Vec::new();
         let mut obstacles: Vec<Obstacle, MAX_NEIGHBOURS> = Vec::new();
         for n in inputs.neighbours {
@@ -213,7 +203,6 @@ impl Controller {
         }
     }
 
-    /// The command for `plan`, and whether avoidance changed it.
     /// Deadlock breaker: a car whose law asks it to move, whose commands the avoidance has
     /// changed in at least a quarter of the periods, and whose error has not dropped by
     /// [`STUCK_PROGRESS_UNITS`] for [`STUCK_US`] backs out on a curve for a second, turning to
@@ -221,16 +210,17 @@ impl Controller {
     /// stuck cars do not mirror each other).
     fn watch_progress(
         &mut self,
-        me: &Me,
+        me: &Ego,
         fresh: &[Obstacle],
         plan: &Plan,
-        desired: Vec2,
+        desired: IVec2,
         now_us: u64,
     ) {
         let p = &mut self.progress;
-        let error = f32::from(plan.error_units);
-        let idle = desired.norm() < self.cfg.drive.creep_mm_s || self.escape.is_some();
-        if idle || error < p.best - STUCK_PROGRESS_UNITS {
+        let error = plan.error_units;
+        let creep = fx(i32::from(self.cfg.drive.creep_mm_s));
+        let idle = desired.len2() < (creep as u64).pow(2) || self.escape.is_some();
+        if idle || error < p.best.saturating_sub(STUCK_PROGRESS_UNITS) {
             *p = Progress {
                 best: error,
                 since_us: now_us,
@@ -252,28 +242,16 @@ impl Controller {
             tries: tries.wrapping_add(1),
         };
         let side = if (me.id ^ tries).is_multiple_of(2) {
-            1.0
+            STEER_LIMIT
         } else {
-            -1.0
+            -STEER_LIMIT
         };
         let creep = self.cfg.drive.creep_mm_s;
         let options = [
-            Sv {
-                steering: side * STEER_LIMIT,
-                velocity: -creep,
-            },
-            Sv {
-                steering: -side * STEER_LIMIT,
-                velocity: -creep,
-            },
-            Sv {
-                steering: side * STEER_LIMIT,
-                velocity: creep,
-            },
-            Sv {
-                steering: -side * STEER_LIMIT,
-                velocity: creep,
-            },
+            sv(side, -creep),
+            sv(-side, -creep),
+            sv(side, creep),
+            sv(-side, creep),
         ];
         if let Some(c) = options
             .into_iter()
@@ -283,9 +261,10 @@ impl Controller {
         }
     }
 
+    /// The command for `plan`, and whether avoidance changed it.
     fn command(
         &mut self,
-        me: &Me,
+        me: &Ego,
         fresh: &[Obstacle],
         plan: &Plan,
         now_us: u64,
@@ -293,20 +272,24 @@ impl Controller {
         let cfg = self.cfg;
         let safety = &cfg.safety;
         let (desired, holding) = match plan.guidance {
-            Guidance::Hold => (Vec2::ZERO, true),
-            Guidance::VelocityF(v) => (v, false),
-            Guidance::Velocity { vx_mm_s, vy_mm_s } => {
-                (Vec2::new(f32::from(vx_mm_s), f32::from(vy_mm_s)), false)
-            }
+            Guidance::Hold => (IVec2::ZERO, true),
+            Guidance::VelocityF(v) => (IVec2::new(fx_from_f32(v.x), fx_from_f32(v.y)), false),
+            Guidance::Velocity { vx_mm_s, vy_mm_s } => (
+                IVec2::from_units(i32::from(vx_mm_s), i32::from(vy_mm_s)),
+                false,
+            ),
             Guidance::Point { x, y, speed_mm_s } => {
-                let at = safety.clamp_goal(Vec2::new(f32::from(x), f32::from(y)));
-                let err = at - me.pos;
-                let speed = f32::from(speed_mm_s).min(err.norm() * POINT_GAIN * MM_PER_UNIT);
-                (err.unit() * speed, false)
+                let (x, y) = safety.clamp_goal(x, y);
+                let err = IVec2::from_units(i32::from(x), i32::from(y)) - me.pos;
+                // Slowing down at 1/s: 2.5 mm/s per tracking unit of distance.
+                let speed = fx(i32::from(speed_mm_s)).min(err.norm() * 5 / 2);
+                (err.unit().along(speed), false)
             }
         };
         let v = field(safety, me, fresh, desired, holding);
-        let pushed = (v - desired).norm() > 0.2 * desired.norm().max(50.0);
+        // Pushed: the field changed the velocity by more than a fifth of it (at least 10
+        // mm/s).
+        let pushed = 5 * (v - desired).norm() > desired.norm().max(fx(50));
         if holding && !pushed {
             return (Command::Stop, false);
         }
@@ -317,53 +300,31 @@ impl Controller {
                 return (to_command(c), true);
             }
         }
-        let sv = self
+        let cmd = self
             .drive
             .track(&self.cfg.drive, self.options.reverse, me.heading, v);
-        if sv == Sv::default() {
+        if cmd == Sv::default() {
             return (Command::Stop, pushed);
         }
-        let refused = gate(safety, me, fresh, sv);
+        let refused = gate(safety, me, fresh, cmd);
         if refused.is_ok() {
             if let (Guidance::Point { x, y, .. }, true, false) =
                 (plan.guidance, self.cfg.use_move_xy, pushed)
             {
-                let at = safety.clamp_goal(Vec2::new(f32::from(x), f32::from(y)));
-                // The clamp keeps both inside the arena, so the casts are exact.
-                return (
-                    Command::MoveXy {
-                        x: round(at.x) as u16,
-                        y: round(at.y) as u16,
-                    },
-                    false,
-                );
+                let (x, y) = safety.clamp_goal(x, y);
+                return (Command::MoveXy { x, y }, false);
             }
-            return (to_command(sv), pushed);
+            return (to_command(cmd), pushed);
         }
         // Refused: the alternative that is safe and goes furthest in the desired direction.
-        let speed = sv.velocity.abs().max(self.cfg.drive.creep_mm_s);
+        let speed = cmd.velocity_mm_s.abs().max(self.cfg.drive.creep_mm_s);
         let reverse = speed.min(self.cfg.drive.max_reverse_mm_s);
         let candidates = [
-            Sv {
-                steering: STEER_LIMIT,
-                velocity: speed,
-            },
-            Sv {
-                steering: -STEER_LIMIT,
-                velocity: speed,
-            },
-            Sv {
-                steering: 0.0,
-                velocity: -reverse,
-            },
-            Sv {
-                steering: STEER_LIMIT,
-                velocity: -reverse,
-            },
-            Sv {
-                steering: -STEER_LIMIT,
-                velocity: -reverse,
-            },
+            sv(STEER_LIMIT, speed),
+            sv(-STEER_LIMIT, speed),
+            sv(0, -reverse),
+            sv(STEER_LIMIT, -reverse),
+            sv(-STEER_LIMIT, -reverse),
         ];
         // Without a way forward, priority goes to the lower ID: a car blocked by a lower-ID car
         // makes room (the safe move that most increases the distance to it, kept for a while);
@@ -374,32 +335,38 @@ impl Controller {
             _ => None,
         };
         let other = yield_to.map(|o| {
-            let nb = o.at(safety.horizon_s);
+            // At the end of the horizon.
+            let nb = o.steps[2];
             (nb, (nb - safety.body(me.pos, me.heading)).norm())
         });
         let psi = v.angle();
-        let align_now = cos(psi - me.heading);
-        let mut best: Option<(f32, Sv)> = None;
-        let mut room: Option<(f32, Sv)> = None;
+        let way = v.unit();
+        let align_now = sin_cos(psi - me.heading).1;
+        let mut best: Option<(i32, Sv)> = None;
+        let mut room: Option<(i32, Sv)> = None;
         for c in candidates {
             if gate(safety, me, fresh, c).is_err() {
                 continue;
             }
-            let (p, h) = crate::drive::predict(me.pos, me.heading, c, safety.horizon_s);
-            let score =
-                (p - me.pos).dot(v.unit()) + ALIGN_WEIGHT_UNITS * (cos(psi - h) - align_now);
-            if score > 0.0 && best.is_none_or(|(s, _)| score > s) {
+            let (p, h) = predict(me.pos, me.heading, c, safety.horizon_ms);
+            // Distance gained along the way plus the heading improvement, 1/16 unit:
+            // cosines in Q14 times 60 units.
+            let gained = mul_shift((p - me.pos).dot(way), 1, 14);
+            let aligned = ((sin_cos(psi - h).1 - align_now) * ALIGN_WEIGHT_UNITS) >> 10;
+            let score = gained + aligned;
+            if score > 0 && best.is_none_or(|(s, _)| score > s) {
                 best = Some((score, c));
             }
             if let Some((nb, d0)) = other {
                 let gain = (nb - safety.body(p, h)).norm() - d0;
-                if gain > 0.5 && room.is_none_or(|(g, _)| gain > g) {
+                // More than half a unit.
+                if gain > fx(1) / 2 && room.is_none_or(|(g, _)| gain > g) {
                     room = Some((gain, c));
                 }
             }
         }
         if let Some((_, c)) = best {
-            if c.velocity < 0.0 {
+            if c.velocity_mm_s < 0 {
                 // Back out for a while (the first leg of a three-point turn) instead of
                 // alternating with the refused forward command every period.
                 self.escape = Some((ESCAPE_PERIODS, c));
@@ -411,6 +378,14 @@ impl Controller {
             return (to_command(c), true);
         }
         (Command::Stop, true)
+    }
+}
+
+/// A steering (mrad) and velocity (mm/s) command.
+const fn sv(steering_mrad: i16, velocity_mm_s: i16) -> Sv {
+    Sv {
+        steering_mrad,
+        velocity_mm_s,
     }
 }
 
@@ -431,13 +406,11 @@ fn nearest_of(fresh: &[Neighbour], x: u16, y: u16, k: u8) -> Vec<Neighbour, MAX_
     out
 }
 
-/// Rounded and clamped to what the LBC accepts.
-fn to_command(sv: Sv) -> Command {
-    let lim = f32::from(STEER_LIMIT_MRAD);
+/// Clamped to what the LBC accepts.
+fn to_command(c: Sv) -> Command {
     Command::MoveSv {
-        // Both clamped into i16 range first, so the casts are exact.
-        steering_mrad: round(clampf(sv.steering * 1000.0, -lim, lim)) as i16,
-        velocity_mm_s: round(clampf(sv.velocity, -MAX_SV_MM_S, MAX_SV_MM_S)) as i16,
+        steering_mrad: c.steering_mrad.clamp(-STEER_LIMIT, STEER_LIMIT),
+        velocity_mm_s: c.velocity_mm_s.clamp(-MAX_SV_MM_S, MAX_SV_MM_S),
     }
 }
 
@@ -561,11 +534,11 @@ mod tests {
         let c = Controller::new(ControllerConfig::default());
         let a = c.area();
         let safety = SafetyConfig::default();
-        let lo = safety.clamp_goal(Vec2::ZERO);
-        let hi = safety.clamp_goal(Vec2::new(1e6, 1e6));
+        let lo = safety.clamp_goal(0, 0);
+        let hi = safety.clamp_goal(1000, 1000);
         assert_eq!(
             (a.x_min, a.x_max, a.y_min, a.y_max),
-            (lo.x as u16, hi.x as u16, lo.y as u16, hi.y as u16)
+            (lo.0, hi.0, lo.1, hi.1)
         );
         assert_eq!((a.x_min, a.y_max), (58, 742));
     }

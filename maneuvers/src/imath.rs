@@ -80,7 +80,7 @@ fn quarter_sin(r: u32) -> i32 {
 }
 
 /// Sine of a binary angle (2^18 = one turn), Q14.
-fn sin_binary(b: u32) -> i32 {
+pub(crate) fn sin_binary(b: u32) -> i32 {
     let r = b & 0xFFFF;
     match (b >> 16) & 3 {
         0 => quarter_sin(r),

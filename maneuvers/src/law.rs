@@ -245,11 +245,31 @@ impl Plan {
     }
 }
 
-/// An error in tracking units from `f32` (truncated, saturated to `0..=u16::MAX`).
+/// An error in tracking units from `f32` (truncated, saturated to `0..=u16::MAX`), for laws
+/// written in floating point.
 // Out of line: one call is smaller than the soft-float conversion at every use.
 #[inline(never)]
 pub fn error_units(e: f32) -> u16 {
     crate::geom::clampf(e, 0.0, f32::from(u16::MAX)) as u16
+}
+
+/// An error in 1/16 tracking unit ([`crate::fixed`]) in whole units (truncated, saturated to
+/// `0..=u16::MAX`).
+pub fn error_units_fx(e: i32) -> u16 {
+    (e.max(0) >> crate::fixed::FRAC).min(i32::from(u16::MAX)) as u16
+}
+
+impl Guidance {
+    /// A velocity in 1/16 mm/s ([`crate::fixed`]) as [`Guidance::Velocity`], rounded to whole
+    /// mm/s (saturated to `i16`).
+    pub fn velocity(v: crate::fixed::IVec2) -> Guidance {
+        let (x, y) = v.to_units();
+        let sat = |c: i32| c.max(-i32::from(i16::MAX)).min(i32::from(i16::MAX)) as i16;
+        Guidance::Velocity {
+            vx_mm_s: sat(x),
+            vy_mm_s: sat(y),
+        }
+    }
 }
 
 /// A group-maneuver law. Registered with one line in `laws/mod.rs`.

@@ -28,6 +28,7 @@
 pub mod args;
 pub mod controller;
 pub mod drive;
+pub mod fixed;
 pub mod fmath;
 pub mod geom;
 pub mod imath;

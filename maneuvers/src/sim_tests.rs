@@ -48,7 +48,7 @@ fn rendezvous(radio: Radio, seed: u64) -> f32 {
     check_safe(&w, "rendezvous");
     let mean = w.cars.iter().fold(Vec2::ZERO, |s, c| s + c.pos) * (1.0 / 3.0);
     for c in &w.cars {
-        assert!((c.pos - mean).norm() < 60.0 + crate::laws::rendezvous::BLOCK_UNITS + 5.0);
+        assert!((c.pos - mean).norm() < 60.0 + crate::laws::rendezvous::BLOCK_UNITS as f32 + 5.0);
     }
     t
 }
@@ -112,7 +112,7 @@ fn formation(shape: Shape, radio: Radio, seed: u64) -> f32 {
         w.all_converged() && w.cars.iter().all(|c| c.speed.abs() < 1.0)
     });
     assert!(t.is_some(), "formation settles after the leader stops");
-    assert!(slot_error(&w, shape, 100.0) < crate::laws::formation::TOLERANCE_UNITS + 2.0);
+    assert!(slot_error(&w, shape, 100.0) < crate::laws::formation::TOLERANCE_UNITS as f32 + 2.0);
     check_safe(&w, "formation at rest");
     worst
 }
@@ -242,9 +242,9 @@ fn follower_stops_when_leader_goes_silent() {
 fn without_avoidance_cars_collide() {
     let mut w = World::new(Radio::PERFECT, 5);
     let mut cfg = ControllerConfig::default();
-    cfg.safety.safety_radius_units = 0.0;
-    cfg.safety.guard_units = 0.0;
-    cfg.safety.influence_units = 1e-3;
+    cfg.safety.safety_radius_units = 0;
+    cfg.safety.guard_units = 0;
+    cfg.safety.influence_units = 1;
     w.set_config(cfg);
     let go = |x, y| GoTo::params(x, y, 300).unwrap();
     w.add(1, 300.0, 150.0, 90.0, go(300, 650));
@@ -287,7 +287,7 @@ fn wedge_follows_a_turn() {
         w.t
     );
     assert!(worst < 120.0);
-    assert!(at_rest < crate::laws::formation::TOLERANCE_UNITS * 1.5 + 2.0);
+    assert!(at_rest < crate::laws::formation::TOLERANCE_UNITS as f32 * 1.5 + 2.0);
 }
 
 /// A seeded random start: rendezvous of 3 (even trials) or circle of 4 (odd trials) cars at

@@ -135,9 +135,15 @@ impl Neighbour {
 }
 
 /// Fixed-capacity neighbour table.
+///
+/// Lookups go through `keys`, the entries' address bytes side by side, which a car scans for
+/// every frame it hears (hundreds a second in a full channel); the entries themselves are
+/// large.
 #[derive(Debug, Clone, Default)]
 pub struct NeighbourTable<const N: usize> {
     entries: Vec<Neighbour, N>,
+    /// `entries[k].addr.to_byte()` for every k.
+    keys: Vec<u8, N>,
 }
 
 impl<const N: usize> NeighbourTable<N> {
@@ -145,7 +151,13 @@ impl<const N: usize> NeighbourTable<N> {
     pub const fn new() -> Self {
         Self {
             entries: Vec::new(),
+            keys: Vec::new(),
         }
+    }
+
+    fn index(&self, addr: Address) -> Option<usize> {
+        let key = addr.to_byte();
+        self.keys.iter().position(|&k| k == key)
     }
 
     /// All entries, fresh or stale.
@@ -155,7 +167,7 @@ impl<const N: usize> NeighbourTable<N> {
 
     /// Entry of `addr`.
     pub fn get(&self, addr: Address) -> Option<&Neighbour> {
-        self.entries.iter().find(|n| n.addr == addr)
+        self.entries.get(self.index(addr)?)
     }
 
     /// Number of entries heard within `stale_after_us`.
@@ -174,10 +186,12 @@ impl<const N: usize> NeighbourTable<N> {
         now: u64,
         stale_after_us: u64,
     ) -> Option<&mut Neighbour> {
-        let idx = match self.entries.iter().position(|n| n.addr == addr) {
+        let idx = match self.index(addr) {
             Some(i) => i,
             None => {
                 if self.entries.push(Neighbour::new(addr, now)).is_ok() {
+                    // Same capacity as `entries`, so there is room.
+                    let _ = self.keys.push(addr.to_byte());
                     self.entries.len() - 1
                 } else {
                     let (i, oldest) = self
@@ -189,6 +203,9 @@ impl<const N: usize> NeighbourTable<N> {
                         return None;
                     }
                     *oldest = Neighbour::new(addr, now);
+                    if let Some(k) = self.keys.get_mut(i) {
+                        *k = addr.to_byte();
+                    }
                     i
                 }
             }
@@ -197,7 +214,8 @@ impl<const N: usize> NeighbourTable<N> {
     }
 
     pub(crate) fn get_mut(&mut self, addr: Address) -> Option<&mut Neighbour> {
-        self.entries.iter_mut().find(|n| n.addr == addr)
+        let i = self.index(addr)?;
+        self.entries.get_mut(i)
     }
 }
 
@@ -245,6 +263,30 @@ mod tests {
                 let back = w.newest.wrapping_sub(m);
                 if back < DEDUP_WINDOW {
                     prop_assert_eq!(w.check(m), SeqCheck::Duplicate);
+                }
+            }
+        }
+    }
+
+    proptest! {
+        /// Lookups by address find the entry with that address, whatever was added and
+        /// evicted before.
+        #[test]
+        fn lookups_find_the_entry_of_the_address(ops in proptest::collection::vec((0u8..12, 0u64..400), 1..80)) {
+            let mut t = NeighbourTable::<4>::new();
+            let mut now = 0;
+            for (a, dt) in ops {
+                now += dt;
+                let addr = if a == 0 { Address::Ground } else { car(a) };
+                if let Some(n) = t.touch(addr, now, 100) {
+                    prop_assert_eq!(n.addr, addr);
+                    n.last_heard = now;
+                }
+                for b in 0u8..12 {
+                    let addr = if b == 0 { Address::Ground } else { car(b) };
+                    let want = t.iter().find(|n| n.addr == addr).map(|n| n.addr);
+                    prop_assert_eq!(t.get(addr).map(|n| n.addr), want);
+                    prop_assert_eq!(t.get_mut(addr).map(|n| n.addr), want);
                 }
             }
         }

@@ -85,6 +85,32 @@ impl<T: Copy, const N: usize> Producer<T, N> {
         Ok(())
     }
 
+    /// Free slots (the consumer may free more meanwhile, never fewer).
+    pub fn room(&self) -> usize {
+        N - self
+            .ring
+            .tail
+            .load(Ordering::Relaxed)
+            .wrapping_sub(self.ring.head.load(Ordering::Acquire))
+    }
+
+    /// Appends as many of `items` as fit, in order; returns how many. One pass with the
+    /// indices read and written once.
+    pub fn enqueue_slice(&mut self, items: &[T]) -> usize {
+        let tail = self.ring.tail.load(Ordering::Relaxed);
+        let room = N - tail.wrapping_sub(self.ring.head.load(Ordering::Acquire));
+        let n = items.len().min(room);
+        for (k, &item) in items.iter().take(n).enumerate() {
+            // SAFETY: the `room` slots from `tail` are free and only this producer writes free
+            // slots; the consumer does not read them before `tail` moves past them below.
+            unsafe { self.ring.slot(tail.wrapping_add(k)).write(item) };
+        }
+        self.ring
+            .tail
+            .store(tail.wrapping_add(n), Ordering::Release);
+        n
+    }
+
     /// Whether there is room for one more item.
     pub fn ready(&self) -> bool {
         self.ring.len() < N
@@ -120,6 +146,34 @@ impl<T: Copy, const N: usize> Consumer<T, N> {
             .head
             .store(head.wrapping_add(1), Ordering::Release);
         Some(item)
+    }
+
+    /// Moves items into `buf` until it is full, the ring is empty, or an item equal to
+    /// `until` has been moved (`None`: no such item); returns how many, and whether the last
+    /// one was `until`. One pass with the indices read and written once.
+    pub fn dequeue_until(&mut self, buf: &mut [T], until: Option<T>) -> (usize, bool)
+    where
+        T: PartialEq,
+    {
+        let head = self.ring.head.load(Ordering::Relaxed);
+        let avail = self.ring.tail.load(Ordering::Acquire).wrapping_sub(head);
+        let mut n = 0;
+        let mut found = false;
+        for (k, slot) in buf.iter_mut().take(avail).enumerate() {
+            // SAFETY: the `avail` slots from `head` are filled (read from `tail` above) and
+            // the producer does not write them again before `head` moves past them below.
+            let item = unsafe { self.ring.slot(head.wrapping_add(k)).read() };
+            *slot = item;
+            n = k + 1;
+            if Some(item) == until {
+                found = true;
+                break;
+            }
+        }
+        self.ring
+            .head
+            .store(head.wrapping_add(n), Ordering::Release);
+        (n, found)
     }
 
     /// The oldest item, left in place.
@@ -238,7 +292,63 @@ mod tests {
         writer.join().unwrap();
     }
 
+    #[test]
+    fn enqueue_slice_takes_what_fits() {
+        let (mut p, mut c) = ring::<4>();
+        assert_eq!(p.room(), 4);
+        assert_eq!(p.enqueue_slice(&[1, 2, 3]), 3);
+        assert_eq!(p.room(), 1);
+        assert_eq!(p.enqueue_slice(&[4, 5, 6]), 1);
+        assert_eq!(p.enqueue_slice(&[7]), 0);
+        let out: Vec<u8> = std::iter::from_fn(|| c.dequeue()).collect();
+        assert_eq!(out, [1, 2, 3, 4]);
+        assert_eq!(p.enqueue_slice(&[]), 0);
+    }
+
+    #[test]
+    fn dequeue_until_stops_after_the_delimiter_or_when_full() {
+        let (mut p, mut c) = ring::<8>();
+        for b in [1, 2, 0, 3, 4] {
+            p.enqueue(b).unwrap();
+        }
+        let mut buf = [9u8; 8];
+        assert_eq!(c.dequeue_until(&mut buf, Some(0)), (3, true));
+        assert_eq!(&buf[..3], [1, 2, 0]);
+        let mut small = [0u8; 1];
+        assert_eq!(c.dequeue_until(&mut small, Some(0)), (1, false));
+        assert_eq!(c.dequeue_until(&mut buf, None), (1, false));
+        assert_eq!(buf[0], 4);
+        assert_eq!(c.dequeue_until(&mut buf, Some(0)), (0, false));
+    }
+
     proptest! {
+        /// `dequeue_until` takes what a loop of `dequeue` would, and stops at the same place.
+        #[test]
+        fn dequeue_until_matches_dequeue(items in prop::collection::vec(0u8..4, 0..40),
+                                         cap in 0usize..12, until in prop::option::of(0u8..4)) {
+            let (mut p1, mut c1) = ring::<64>();
+            let (mut p2, mut c2) = ring::<64>();
+            for &b in &items {
+                p1.enqueue(b).unwrap();
+                p2.enqueue(b).unwrap();
+            }
+            let mut buf = vec![0u8; cap];
+            let (n, found) = c1.dequeue_until(&mut buf, until);
+            let mut want = Vec::new();
+            let mut want_found = false;
+            while want.len() < cap {
+                let Some(b) = c2.dequeue() else { break };
+                want.push(b);
+                if Some(b) == until {
+                    want_found = true;
+                    break;
+                }
+            }
+            prop_assert_eq!(&buf[..n], &want[..]);
+            prop_assert_eq!(found, want_found);
+            prop_assert_eq!(c1.len(), c2.len());
+        }
+
         /// Against a VecDeque bounded to the same size.
         #[test]
         fn behaves_like_a_bounded_deque(ops in prop::collection::vec(prop::option::of(any::<u8>()), 0..400)) {

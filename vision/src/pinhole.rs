@@ -6,10 +6,14 @@
 //! down by `tilt_mrad`. Car frame: forward, left, up; bearing is counter-clockwise (to the left)
 //! from straight ahead, in milliradians, as everywhere in the project.
 //!
-//! The trigonometry uses the compact `f32` functions of `maneuvers::fmath` (no `f64`, no `libm`:
-//! the firmware has no FPU and little room for code); per blob, not per pixel.
+//! What the firmware runs, [`CameraModel::observe`], is fixed point (`maneuvers::fixed`: image
+//! coordinates in 1/16 pixel, binary angles, Q14 sines): the firmware has no FPU and little
+//! room for code. The `f32` functions ([`CameraModel::ray`], [`CameraModel::project`],
+//! [`CameraModel::bearing`], [`CameraModel::range_from_row`]) are for the host (the arena's
+//! synthetic camera, tests), with the compact functions of `maneuvers::fmath`.
 
 use crate::blobs::Blob;
+use maneuvers::fixed::{atan2, from_mrad, mul_q14, sin_cos, to_mrad};
 use maneuvers::fmath::{atan2 as atan2f, cos as cosf, sin as sinf, sqrt as sqrtf, tan as tanf};
 
 /// Camera intrinsics and mounting.
@@ -21,7 +25,7 @@ pub struct CameraModel {
     /// Horizontal field of view, milliradians.
     pub hfov_mrad: u16,
     /// Height of the optical centre above the floor, mm.
-    pub height_mm: f32,
+    pub height_mm: u16,
     /// Downward pitch of the optical axis, milliradians (negative looks up).
     pub tilt_mrad: i16,
 }
@@ -33,7 +37,7 @@ impl Default for CameraModel {
             width: 640,
             height: 480,
             hfov_mrad: 1047,
-            height_mm: 70.0,
+            height_mm: 70,
             tilt_mrad: 50,
         }
     }
@@ -43,20 +47,20 @@ impl Default for CameraModel {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MarkerModel {
-    pub diameter_mm: f32,
+    pub diameter_mm: u16,
     /// Bottom of the cylinder above the floor, mm.
-    pub bottom_mm: f32,
+    pub bottom_mm: u16,
     /// Cylinder height, mm.
-    pub height_mm: f32,
+    pub height_mm: u16,
 }
 
 impl Default for MarkerModel {
     /// 40 mm across and 40 mm tall, on top of a 50 mm tall car body.
     fn default() -> Self {
         MarkerModel {
-            diameter_mm: 40.0,
-            bottom_mm: 50.0,
-            height_mm: 40.0,
+            diameter_mm: 40,
+            bottom_mm: 50,
+            height_mm: 40,
         }
     }
 }
@@ -114,20 +118,44 @@ impl CameraModel {
         atan2f(r[1], r[0])
     }
 
+    /// Focal length in 1/16 pixel: `width / 2 * cot(hfov / 2)`.
+    fn focal_q4(&self) -> i32 {
+        let (s, c) = sin_cos(from_mrad(i32::from(self.hfov_mrad)) / 2);
+        // cot in Q14: below 2^28 / 1 even for a field of view of a few mrad.
+        mul_q14(i32::from(self.width) * 8, (c << 14) / s.max(1))
+    }
+
+    /// Bearing of image point `(u, v)` given in 1/16 pixel, as a binary angle (65 536 per
+    /// turn): [`CameraModel::bearing`] in fixed point.
+    fn bearing_q4(&self, f: i32, u: i32, v: i32) -> i32 {
+        let x = u - i32::from(self.width) * 8;
+        let y = v - i32::from(self.height) * 8;
+        let (s, c) = sin_cos(from_mrad(i32::from(self.tilt_mrad)));
+        // The ray times the focal length: forward f cos(t) - y sin(t), left -x.
+        atan2(-x, mul_q14(f, c) - mul_q14(y, s))
+    }
+
     /// Bearing and range of a blob that is a whole marker. Range comes from the marker's angular
     /// width: the edge rays are tangent to the cylinder, so `range = (d / 2) / sin(width / 2)`.
+    /// Fixed point throughout (bearings within 0.1 mrad of the `f32` model's; the pixel edges
+    /// limit both figures far more).
     pub fn observe(&self, blob: &Blob, marker: &MarkerModel) -> Observation {
-        let (_, cy) = blob.centroid();
-        let v = cy + 0.5;
-        let left = self.bearing(blob.min_x as f32, v);
-        let right = self.bearing(blob.max_x as f32 + 1.0, v);
-        let bearing = 0.5 * (left + right);
-        let half = (0.5 * (left - right)).max(1e-4);
-        let range = marker.diameter_mm * 0.5 / sinf(half);
+        let area = blob.area.max(1);
+        // The centroid's row, plus half a pixel (the pixel's centre), in 1/16 pixel.
+        let v = (blob.sum_y / area) * 16 + (blob.sum_y % area) * 16 / area + 8;
+        let v = v.min(i32::MAX as u32) as i32;
+        let f = self.focal_q4();
+        let left = self.bearing_q4(f, i32::from(blob.min_x) * 16, v);
+        let right = self.bearing_q4(f, (i32::from(blob.max_x) + 1) * 16, v);
+        let bearing = (left + right) / 2;
+        // At least one binary angle (0.1 mrad) of half-width.
+        let half = ((left - right) / 2).max(1);
+        // d / 2 / sin(half), with the sine in Q14.
+        let range = u32::from(marker.diameter_mm) * 8192 / sin_cos(half).0.max(1) as u32;
         Observation {
             class: blob.class,
-            bearing_mrad: (bearing * 1000.0) as i32,
-            range_mm: range.clamp(0.0, u32::MAX as f32) as u32,
+            bearing_mrad: to_mrad(bearing),
+            range_mm: range,
         }
     }
 
@@ -135,7 +163,7 @@ impl CameraModel {
     /// marker's centre); `None` when the ray does not come down (or up) to that height.
     pub fn range_from_row(&self, u: f32, v: f32, point_height_mm: f32) -> Option<f32> {
         let r = self.ray(u, v);
-        let dz = point_height_mm - self.height_mm;
+        let dz = point_height_mm - f32::from(self.height_mm);
         if r[2] == 0.0 || (dz / r[2]) <= 0.0 {
             return None;
         }
@@ -189,7 +217,7 @@ mod tests {
         let (cx, cl) = (1000.0f32, 300.0f32);
         let bearing = atan2f(cl, cx);
         let d = sqrtf(cx * cx + cl * cl);
-        let half = (mk.diameter_mm * 0.5 / d).asin();
+        let half = (f32::from(mk.diameter_mm) * 0.5 / d).asin();
         let edge = |a: f32| m.project([a.cos() * d, a.sin() * d, 0.0]).unwrap().0;
         let (ul, ur) = (edge(bearing + half), edge(bearing - half));
         let blob = Blob {
@@ -217,5 +245,58 @@ mod tests {
         let r = m.range_from_row(u, v, 0.0).unwrap();
         assert!((r - 500.0).abs() < 1.0, "{r}");
         assert_eq!(m.range_from_row(320.0, 0.0, 0.0), None);
+    }
+
+    /// `observe` in `f64`, the model's exact answer for a blob.
+    fn observe_f64(m: &CameraModel, blob: &Blob, mk: &MarkerModel) -> (f64, f64) {
+        let f = f64::from(m.width) / 2.0 / (f64::from(m.hfov_mrad) * 5e-4).tan();
+        let t = f64::from(m.tilt_mrad) * 1e-3;
+        let v = f64::from(blob.sum_y) / f64::from(blob.area.max(1)) + 0.5;
+        let bearing = |u: f64| {
+            let x = (u - f64::from(m.width) / 2.0) / f;
+            let y = (v - f64::from(m.height) / 2.0) / f;
+            (-x).atan2(t.cos() - y * t.sin())
+        };
+        let (l, r) = (
+            bearing(f64::from(blob.min_x)),
+            bearing(f64::from(blob.max_x) + 1.0),
+        );
+        let half = (0.5 * (l - r)).max(1e-4);
+        (0.5 * (l + r), f64::from(mk.diameter_mm) * 0.5 / half.sin())
+    }
+
+    proptest::proptest! {
+        /// The fixed-point observation against the exact model: bearing within 0.7 mrad (it is
+        /// rounded to whole mrad), and
+        /// the half-width angle the range stands for within 0.25 mrad (one pixel is 1.8 mrad).
+        #[test]
+        fn observe_matches_the_exact_model(
+            min_x in 0u16..600,
+            width in 4u16..200,
+            row in 0u32..480,
+            tilt in -200i16..200,
+        ) {
+            let m = CameraModel { tilt_mrad: tilt, ..CameraModel::default() };
+            let mk = MarkerModel::default();
+            let blob = Blob {
+                class: 1,
+                area: 10,
+                sum_x: 0,
+                sum_y: row * 10 + 3,
+                min_x,
+                max_x: (min_x + width).min(639),
+                min_y: 0,
+                max_y: 0,
+            };
+            let o = m.observe(&blob, &mk);
+            let (bearing, range) = observe_f64(&m, &blob, &mk);
+            proptest::prop_assert!((f64::from(o.bearing_mrad) - bearing * 1000.0).abs() <= 0.7, "{:?} {}", o, bearing);
+            let d = f64::from(mk.diameter_mm) * 0.5;
+            let half = (d / f64::from(o.range_mm)).min(1.0).asin();
+            let exact = (d / range).min(1.0).asin();
+            // The range is an integer in mm: half a mm of it in angle.
+            let rounding = d / (range * range);
+            proptest::prop_assert!((half - exact).abs() <= 0.25e-3 + rounding, "{:?} {} {} {}", o, range, half, exact);
+        }
     }
 }

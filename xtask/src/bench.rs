@@ -1,7 +1,8 @@
 //! `cargo xtask bench`: runs the project's benchmarks and prints their figures as markdown,
 //! each with the command that reproduces it.
 //!
-//! - `size`: text/data/bss of the qemu_virt release firmware against the size goals.
+//! - `size`: text/data/bss of the softcore release firmware against the size goals, and where
+//!   the text goes by crate and symbol group (`size.rs`).
 //! - `fw-decode`: RV32 instructions per received byte for deframing and decoding a full
 //!   STREAM, counted with `minstret` by the `bench_lbc_decode` firmware binary under
 //!   `qemu-system-riscv32 -icount shift=0`.
@@ -25,24 +26,15 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
-use object::{Object, ObjectSection, ObjectSymbol, SectionKind, SymbolKind};
 use qemu_harness::{Qemu, UartAttach};
 
 use crate::{fw, stage, workspace_root};
 
-/// Goal for code and read-only data of the firmware.
-const TEXT_GOAL: u64 = 64 * 1024;
-/// Goal for static RAM (data + bss) without the buffers.
-const STATIC_RAM_GOAL: u64 = 16 * 1024;
-/// Static objects at least this large count as buffers (UART rings, frame buffers).
-const BUFFER_MIN: u64 = 1024;
-/// How many of the largest functions the size report lists.
-const TOP_FUNCTIONS: usize = 8;
 /// Goal for the on-target LBC receive path.
 const INSTRUCTIONS_PER_BYTE_GOAL: f64 = 25.0;
 /// The on-target benchmark program (a binary of `ubc-app`).
@@ -133,7 +125,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     for bench in selected {
         stage(bench.title());
         let section = match bench {
-            Bench::Size => size(),
+            Bench::Size => crate::size::bench(),
             Bench::FwDecode => fw_decode(),
             Bench::HostDecode => cargo_bench("lbc-link", "decode", "lbc-link host decode"),
             Bench::Radio => cargo_bench("arena", "radio", "Radio"),
@@ -176,104 +168,6 @@ pub(crate) fn verdict(ok: bool) -> &'static str {
     } else {
         "**missed**"
     }
-}
-
-/// Firmware section sizes against the goals.
-fn size() -> Result<String> {
-    let elf = fw::build("qemu_virt", true)?;
-    let s = fw::sizes(&elf)?;
-    let buffers = buffer_objects(&elf)?;
-    // Every static object counts, the UART rings too; only camera frame buffers would be
-    // left out (the frame grabber's window is outside the image).
-    let static_ram = s.data + s.bss;
-    let mut md = String::from("## Firmware size (qemu_virt, release)\n\n");
-    let _ = writeln!(md, "| section | bytes | goal | |");
-    let _ = writeln!(md, "|---|---:|---:|---|");
-    let _ = writeln!(
-        md,
-        "| text (code + read-only data) | {} ({}) | <= {} | {} |",
-        s.text,
-        kib(s.text),
-        kib(TEXT_GOAL),
-        verdict(s.text <= TEXT_GOAL)
-    );
-    let _ = writeln!(md, "| data | {} | | |", s.data);
-    let _ = writeln!(md, "| bss | {} ({}) | | |", s.bss, kib(s.bss));
-    let _ = writeln!(
-        md,
-        "| static RAM (data + bss) | {static_ram} ({}) | <= {} | {} |",
-        kib(static_ram),
-        kib(STATIC_RAM_GOAL),
-        verdict(static_ram <= STATIC_RAM_GOAL)
-    );
-    let _ = writeln!(
-        md,
-        "\nLarge static objects ({BUFFER_MIN} bytes or more), counted above:\n"
-    );
-    if buffers.is_empty() {
-        let _ = writeln!(md, "- none");
-    }
-    for (name, bytes) in &buffers {
-        let _ = writeln!(md, "- `{name}`: {bytes} bytes");
-    }
-    let _ = writeln!(md, "\nLargest functions (bytes of code):\n");
-    for (bytes, name) in largest_functions(&elf, TOP_FUNCTIONS)? {
-        let _ = writeln!(md, "- {bytes} `{name}`");
-    }
-    let _ = writeln!(
-        md,
-        "\nStack and heap reservations of the linker script are not counted.\n\
-         Reproduce: `cargo xtask fw --board qemu_virt` (prints `text N data N bss N`)."
-    );
-    Ok(md)
-}
-
-/// The `n` largest function symbols of the ELF, largest first, demangled.
-fn largest_functions(elf: &Path, n: usize) -> Result<Vec<(u64, String)>> {
-    let bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
-    let file = object::File::parse(&*bytes)
-        .with_context(|| format!("parsing {} as an object file", elf.display()))?;
-    let mut funcs: Vec<(u64, String)> = file
-        .symbols()
-        .filter(|sym| sym.kind() == SymbolKind::Text && sym.size() > 0)
-        .map(|sym| {
-            let name = sym.name().unwrap_or("?");
-            (sym.size(), format!("{:#}", rustc_demangle::demangle(name)))
-        })
-        .collect();
-    funcs.sort_by(|a, b| b.cmp(a));
-    funcs.dedup();
-    funcs.truncate(n);
-    Ok(funcs)
-}
-
-/// Writable static objects of at least [`BUFFER_MIN`] bytes, by demangled name.
-fn buffer_objects(elf: &Path) -> Result<BTreeMap<String, u64>> {
-    let bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
-    let file = object::File::parse(&*bytes)
-        .with_context(|| format!("parsing {} as an object file", elf.display()))?;
-    let mut out = BTreeMap::new();
-    for sym in file.symbols() {
-        if sym.kind() != SymbolKind::Data || sym.size() < BUFFER_MIN {
-            continue;
-        }
-        let Some(index) = sym.section_index() else {
-            continue;
-        };
-        let Ok(section) = file.section_by_index(index) else {
-            continue;
-        };
-        if !matches!(
-            section.kind(),
-            SectionKind::Data | SectionKind::UninitializedData
-        ) || matches!(section.name(), Ok(".stack" | ".heap"))
-        {
-            continue;
-        }
-        let name = sym.name().unwrap_or("?");
-        out.insert(format!("{:#}", rustc_demangle::demangle(name)), sym.size());
-    }
-    Ok(out)
 }
 
 /// One `bench stage=...` line of the on-target benchmark.
@@ -387,7 +281,7 @@ fn fw_decode_table(figures: &[StageFigure]) -> Result<String> {
         md,
         "STREAM at 30 Hz with every valid variable (format `0x0FDF9F1F` = all 28 bits except \
          the NOT-IN-USE mask `0x002060E0`), {} messages of {} bytes, counted with `minstret` \
-         on RV32IMA under `qemu-system-riscv32 -icount shift=0` (release build, opt-level \"s\").\n",
+         on RV32IMAC under `qemu-system-riscv32 -icount shift=0` (release build, opt-level \"s\").\n",
         headline.frames,
         headline.bytes.checked_div(headline.frames).unwrap_or(0)
     );
@@ -472,7 +366,7 @@ fn vision_stage_meaning(stage: &str) -> &'static str {
         "runs" => "row scan only: classification into runs (count = runs)",
         "process_frame" => "`vision::process_frame`: classification, runs, components, blob list",
         "process_frame_rows2" => "the same with `row_step = 2` (every other row)",
-        "observe" => "`CameraModel::observe`: bearing and range of one blob (soft float)",
+        "observe" => "`CameraModel::observe`: bearing and range of one blob (fixed point)",
         other => stage_meaning(other),
     }
 }
@@ -525,7 +419,7 @@ fn fw_vision_table(figures: &[StageFigure], text_size: u64) -> Result<String> {
         md,
         "A rendered 640x480 RGB332 view with four cars in sight (`arena::camera_feed::bench_scene`), \
          published by the host into the frame-grabber window (QEMU RAM shared file) and read in \
-         place by `bench_vision` through the board's frame grabber; `minstret` on RV32IMA under \
+         place by `bench_vision` through the board's frame grabber; `minstret` on RV32IMAC under \
          `qemu-system-riscv32 -icount shift=0`, release build (opt-level \"s\"). The firmware's \
          blobs equal the host pipeline's exactly (checked by the run).\n"
     );

@@ -1,6 +1,6 @@
 //! `cargo xtask fw`: builds the `ubc-app` firmware for one board and reports its size.
 //!
-//! Toolchain choice: when the active rustup toolchain has the `riscv32ima-unknown-none-elf`
+//! Toolchain choice: when the active rustup toolchain has the `riscv32imac-unknown-none-elf`
 //! target installed, plain `cargo build --target ...` is used. Otherwise Debian's Rust
 //! (`rustc-web`, `cargo-web`, `rust-web-src`: `/usr/bin/cargo`, `/usr/bin/rustc`, library
 //! sources under `/usr/lib/rustlib/src/rust/library`) builds `core` itself with
@@ -17,8 +17,9 @@ use std::process::Command;
 use anyhow::{bail, Context, Result};
 use object::{Object, ObjectSection, SectionKind};
 
-/// The firmware's target triple (RV32IMA, machine mode, no OS).
-pub const TARGET: &str = "riscv32ima-unknown-none-elf";
+/// The firmware's target triple (RV32IMAC: the soft core, its model and QEMU's `virt` board
+/// all have the C extension; machine mode, no OS).
+pub const TARGET: &str = "riscv32imac-unknown-none-elf";
 /// Boards the firmware can be built for (cargo features of `ubc-app`).
 pub const BOARDS: &[&str] = &["qemu_virt", "softcore"];
 /// Debian packages of the fallback toolchain.
@@ -34,7 +35,7 @@ const BUILD_STD: [&str; 2] = [
 const DEBIAN_RUSTC: &str = "/usr/bin/rustc";
 const DEBIAN_LINKER: &str = "ld.lld-16";
 /// Environment variable cargo reads the target's linker from.
-const LINKER_VAR: &str = "CARGO_TARGET_RISCV32IMA_UNKNOWN_NONE_ELF_LINKER";
+const LINKER_VAR: &str = "CARGO_TARGET_RISCV32IMAC_UNKNOWN_NONE_ELF_LINKER";
 /// Name of the firmware binary.
 pub const BIN: &str = "ubc-app";
 
@@ -378,14 +379,16 @@ mod tests {
     #[test]
     fn elf_path_layout() {
         let p = features_elf_path("qemu_virt", BIN, &[], true);
-        assert!(p.ends_with("ubc-app/target/qemu_virt/riscv32ima-unknown-none-elf/release/ubc-app"));
+        assert!(
+            p.ends_with("ubc-app/target/qemu_virt/riscv32imac-unknown-none-elf/release/ubc-app")
+        );
         assert!(features_elf_path("qemu_virt", BIN, &[], false).ends_with("debug/ubc-app"));
         assert!(
             features_elf_path("qemu_virt", "bench_lbc_decode", &[], true)
                 .ends_with("release/bench_lbc_decode")
         );
         assert!(features_elf_path("qemu_virt", BIN, &["echo-test"], true)
-            .ends_with("target/qemu_virt+echo-test/riscv32ima-unknown-none-elf/release/ubc-app"));
+            .ends_with("target/qemu_virt+echo-test/riscv32imac-unknown-none-elf/release/ubc-app"));
     }
 
     /// Slow (builds `core` for the target): `cargo test -p xtask -- --ignored firmware_clippy`.

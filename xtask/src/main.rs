@@ -2,8 +2,8 @@
 //!
 //! `demo` runs the main job, `test` runs every test, `fw` builds the firmware (or a program,
 //! `--bin`), `new-program` makes a program from the template, `qemu` boots the firmware,
-//! `bench` measures, `fpga` builds the SoC's bitstreams. Each installs what it needs first
-//! (see `install`).
+//! `bench` measures, `fpga` builds the SoC's bitstreams, `size` says where the firmware's text
+//! goes. Each installs what it needs first (see `install`).
 
 mod bench;
 mod bench_fpga;
@@ -13,6 +13,7 @@ mod fw;
 mod install;
 mod program;
 mod qemu;
+mod size;
 mod test;
 
 use std::path::PathBuf;
@@ -60,6 +61,15 @@ enum Cmd {
     Bench(bench::BenchArgs),
     /// Synthesise, place, route and time the SoC for the iCE40 boards; write bitstreams.
     Fpga(fpga::FpgaArgs),
+    /// Where a firmware image's text goes, by source crate and by symbol group.
+    Size {
+        /// The ELF (default: the stock firmware, built for `softcore`).
+        #[arg(long)]
+        elf: Option<PathBuf>,
+        /// Instead, the code of this crate (e.g. `maneuvers`, `core`) by source file.
+        #[arg(long, value_name = "CRATE")]
+        files: Option<String>,
+    },
 }
 
 fn main() {
@@ -80,6 +90,7 @@ fn main() {
         Cmd::Qemu(args) => qemu::run(args),
         Cmd::Bench(args) => bench::run(args),
         Cmd::Fpga(args) => fpga::run(args),
+        Cmd::Size { elf, files } => size::run(elf.as_deref(), files.as_deref()),
     };
     if let Err(err) = result {
         eprintln!("xtask: error: {err:#}");

@@ -10,8 +10,10 @@ pub(super) fn slot_offsets(f: &FormationPhase, ids: &[u8]) -> Vec<Option<(f64, f
     ids.iter()
         .map(|id| {
             f.followers.iter().position(|c| c == id).map(|k| {
+                // In 1/16 tracking unit (`maneuvers::fixed`).
                 let o = law.slot_offset(u8::try_from(k).unwrap_or(u8::MAX));
-                (f64::from(o.x) * MM_PER_UNIT, f64::from(o.y) * MM_PER_UNIT)
+                let mm = |v: i32| f64::from(v) / f64::from(maneuvers::fixed::ONE) * MM_PER_UNIT;
+                (mm(o.x), mm(o.y))
             })
         })
         .collect()

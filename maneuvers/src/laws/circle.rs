@@ -7,38 +7,37 @@
 //! a quarter radius of the circle). Across the circle a proportional term pulls it onto the
 //! radius.
 
-use core::f32::consts::TAU;
-
-use crate::geom::{clampf, wrap, Vec2};
-use crate::law::{error_units, Guidance, Law, LawInput, Me, Plan, Waypoint};
+use crate::fixed::{from_mrad, fx, mul_shift, wrap, IVec2, TURN};
+use crate::law::{error_units_fx, Guidance, Law, LawInput, Plan, Waypoint};
 use crate::param::{Param, Values};
-use crate::{Neighbour, Phase, MM_PER_UNIT};
+use crate::{CarPose, Neighbour, Phase};
 
-/// Gain of the gap balance, 1/s (mm/s of extra speed per mm of gap difference).
-const GAP_GAIN: f32 = 0.6;
-/// Gain onto the radius, 1/s.
-const RADIAL_GAIN: f32 = 1.0;
-/// Neighbours farther than this fraction of the radius from the circle are not spaced
-/// against: a car still on its way in must not hold up the cars already on the circle.
-const NEAR_FRACTION: f32 = 0.25;
+/// Gain of the gap balance, 1/s (mm/s of extra speed per mm of gap difference), in tenths.
+const GAP_GAIN_TENTHS: i32 = 6;
+/// Gain onto the radius: 1/s, which is 2.5 mm/s per tracking unit of error.
+const RADIAL_MM_S_PER_UNIT: (i32, i32) = (5, 2);
 /// Spacing and radius error below which the car counts as in place, tracking units (50 mm).
-pub const TOLERANCE_UNITS: f32 = 20.0;
+pub const TOLERANCE_UNITS: i32 = 20;
+/// Arc length per binary angle of gap and tracking unit of radius, in 1/16 unit, Q32:
+/// 16 * 2 pi / 65536.
+const ARC_Q32: i64 = (4_294_967_296.0 * 16.0 * core::f64::consts::TAU / 65_536.0 + 0.5) as i64;
 
 /// The circle law.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Circle {
-    centre: Vec2,
-    radius: f32,
-    speed: f32,
+    /// Centre, 1/16 tracking unit.
+    centre: IVec2,
+    radius_units: u16,
+    speed_mm_s: i16,
 }
 
-/// Angular gaps around one car.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Angular gaps around one car, as binary angles (65 536 per turn).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Gaps {
-    /// Angle to the next car in the direction of rotation, rad, in (0, 2 pi].
-    pub ahead: f32,
-    /// Angle to the next car against the direction of rotation, rad.
-    pub behind: f32,
+    /// Angle to the next car in the direction of rotation, in (0, 65 536].
+    pub ahead: i32,
+    /// Angle to the next car against the direction of rotation.
+    pub behind: i32,
     /// Cars near the circle, this one included.
     pub count: usize,
 }
@@ -61,46 +60,55 @@ impl Law for Circle {
     }
 
     fn step(&mut self, input: &LawInput<'_>) -> Plan {
-        self.plan(&input.me(), input.neighbours, input.waypoint)
+        self.plan(&input.own, input.neighbours, input.waypoint)
     }
+}
+
+/// A pose's position, 1/16 tracking unit.
+fn position(p: &CarPose) -> IVec2 {
+    IVec2::from_units(i32::from(p.x), i32::from(p.y))
 }
 
 impl Circle {
     /// Centre and radius in tracking units, speed in mm/s (positive counter-clockwise).
     pub fn with(cx: u16, cy: u16, radius_units: u16, speed_mm_s: i16) -> Self {
         Self {
-            centre: Vec2::new(f32::from(cx), f32::from(cy)),
-            radius: f32::from(radius_units),
-            speed: f32::from(speed_mm_s),
+            centre: IVec2::from_units(i32::from(cx), i32::from(cy)),
+            radius_units,
+            speed_mm_s,
         }
     }
 
-    fn direction(&self) -> f32 {
-        if self.speed < 0.0 {
-            -1.0
+    fn direction(&self) -> i32 {
+        if self.speed_mm_s < 0 {
+            -1
         } else {
-            1.0
+            1
         }
     }
 
-    /// Gaps between this car and its neighbours on the circle.
-    pub fn gaps(&self, pos: Vec2, fresh: &[Neighbour]) -> Gaps {
+    /// Gaps between the car at `pos` (1/16 unit) and its neighbours on the circle: those whose
+    /// distance from the centre is within a quarter of the radius of it.
+    pub fn gaps(&self, pos: IVec2, fresh: &[Neighbour]) -> Gaps {
         let s = self.direction();
         let phi = (pos - self.centre).angle();
-        let mut ahead = TAU;
-        let mut behind = TAU;
+        let r = i64::from(fx(i32::from(self.radius_units)));
+        let (inner, outer) = (r * 3 / 4, r * 5 / 4);
+        let mut ahead = TURN;
+        let mut behind = TURN;
         let mut count = 1;
         for n in fresh {
-            let q = Vec2::new(f32::from(n.pose.x), f32::from(n.pose.y)) - self.centre;
-            if (q.norm() - self.radius).abs() > NEAR_FRACTION * self.radius {
+            let q = position(&n.pose) - self.centre;
+            let d2 = q.len2();
+            if d2 < (inner * inner) as u64 || d2 > (outer * outer) as u64 {
                 continue;
             }
             count += 1;
             let d = wrap(s * (q.angle() - phi));
-            let a = if d <= 0.0 { d + TAU } else { d };
-            let b = TAU - a;
+            let a = if d <= 0 { d + TURN } else { d };
+            let b = TURN - a;
             ahead = ahead.min(a);
-            behind = behind.min(if b <= 0.0 { TAU } else { b });
+            behind = behind.min(if b <= 0 { TURN } else { b });
         }
         Gaps {
             ahead,
@@ -108,9 +116,7 @@ impl Circle {
             count,
         }
     }
-}
 
-impl Circle {
     /// The group command for this circle.
     pub fn params(
         cx: u16,
@@ -129,38 +135,51 @@ impl Circle {
         )
     }
 
-    /// One period for car `me` with its fresh neighbours; the latest waypoint, if any, is
-    /// the centre.
-    fn plan(&mut self, me: &Me, fresh: &[Neighbour], waypoint: Option<Waypoint>) -> Plan {
+    /// One period for the car at `own` with its fresh neighbours; the latest waypoint, if any,
+    /// is the centre.
+    fn plan(&mut self, own: &CarPose, fresh: &[Neighbour], waypoint: Option<Waypoint>) -> Plan {
         if let Some(w) = waypoint {
-            self.centre = Vec2::new(f32::from(w.x), f32::from(w.y));
+            self.centre = IVec2::from_units(i32::from(w.x), i32::from(w.y));
         }
-        let rel = me.pos - self.centre;
+        let pos = position(own);
+        let rel = pos - self.centre;
         let rho = rel.norm();
-        let radial = if rho > 1e-3 {
+        let radial = if rho > 0 {
             rel.unit()
         } else {
-            Vec2::from_angle(me.heading)
+            IVec2::from_angle(from_mrad(i32::from(own.heading_mrad)))
         };
-        let tangent = radial.perp() * self.direction();
-        let g = self.gaps(me.pos, fresh);
-        let ideal = TAU / g.count as f32;
-        let spacing_err = (g.ahead - ideal).abs().max((g.behind - ideal).abs()) * self.radius;
-        let radial_err = self.radius - rho;
+        let tangent = radial.perp().times(self.direction());
+        let g = self.gaps(pos, fresh);
+        let ideal = TURN / g.count as i32;
+        let radius = i32::from(self.radius_units);
+        // Gaps (binary angles) times the radius (units) as arc lengths, 1/16 unit.
+        let arc = |a: i32| mul_shift(i64::from(a) * i64::from(radius), ARC_Q32, 32);
+        let spacing_err = arc((g.ahead - ideal).abs().max((g.behind - ideal).abs()));
+        let r = fx(radius);
+        let radial_err = r - rho;
         // Full balance only once near the circle: far away the neighbours' angles mean little.
-        let near = clampf(1.0 - radial_err.abs() / self.radius, 0.0, 1.0);
-        let speed = self.speed.abs();
-        let balance = GAP_GAIN * (g.ahead - g.behind) * 0.5 * self.radius * MM_PER_UNIT;
-        let v_t = clampf((speed + balance) * near, 0.0, 2.0 * speed + 150.0);
-        let v_r = radial_err * RADIAL_GAIN * MM_PER_UNIT;
-        let v = (tangent * v_t + radial * v_r).clamp_norm(2.0 * speed + 300.0);
+        let near = if radial_err.abs() >= r {
+            0
+        } else {
+            ((r - radial_err.abs()) << 14) / r
+        };
+        let speed = fx(i32::from(self.speed_mm_s).abs());
+        // GAP_GAIN * (ahead - behind) / 2 * radius, in mm/s: 2.5 mm per unit of arc, so
+        // 0.6 / 2 * 2.5 = 3/4 of the arc.
+        let balance = arc(g.ahead - g.behind) * (GAP_GAIN_TENTHS * 5) / 40;
+        let v_t = mul_shift(i64::from(speed + balance), i64::from(near), 14)
+            .max(0)
+            .min(2 * speed + fx(150));
+        let v_r = radial_err * RADIAL_MM_S_PER_UNIT.0 / RADIAL_MM_S_PER_UNIT.1;
+        let v = (tangent.along(v_t) + radial.along(v_r)).clamp_norm(2 * speed + fx(300));
         let err = spacing_err.max(radial_err.abs());
-        let converged = err < TOLERANCE_UNITS;
+        let converged = err < fx(TOLERANCE_UNITS);
         Plan {
-            guidance: if converged && speed < 1.0 {
+            guidance: if converged && speed == 0 {
                 Guidance::Hold
             } else {
-                Guidance::VelocityF(v)
+                Guidance::velocity(v)
             },
             phase: if converged {
                 Phase::Track
@@ -168,7 +187,7 @@ impl Circle {
                 Phase::Approach
             },
             converged,
-            error_units: error_units(err),
+            error_units: error_units_fx(err),
         }
     }
 }
@@ -176,90 +195,93 @@ impl Circle {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::CarPose;
-    use core::f32::consts::PI;
+    use crate::fixed::{HALF_TURN, QUARTER_TURN};
 
     fn n(id: u8, x: u16, y: u16) -> Neighbour {
         Neighbour {
             id,
-            pose: CarPose {
-                x,
-                y,
-                ..CarPose::default()
-            },
+            pose: at(x, y),
             age_us: 0,
         }
     }
 
-    fn me(x: f32, y: f32) -> Me {
-        Me {
-            id: 1,
-            pos: Vec2::new(x, y),
-            heading: 0.0,
-            speed: 0.0,
+    fn at(x: u16, y: u16) -> CarPose {
+        CarPose {
+            x,
+            y,
+            ..CarPose::default()
+        }
+    }
+
+    fn velocity(p: &Plan) -> (i16, i16) {
+        match p.guidance {
+            Guidance::Velocity { vx_mm_s, vy_mm_s } => (vx_mm_s, vy_mm_s),
+            other => panic!("{other:?}"),
         }
     }
 
     #[test]
     fn gaps_to_neighbours() {
         let c = Circle::with(300, 400, 100, 100);
+        let me = IVec2::from_units(400, 400);
         // Me at angle 0; a neighbour at 90 degrees (ahead counter-clockwise), one at 180.
-        let g = c.gaps(Vec2::new(400.0, 400.0), &[n(2, 300, 500), n(3, 200, 400)]);
-        assert!((g.ahead - PI / 2.0).abs() < 1e-3, "{g:?}");
-        assert!((g.behind - PI).abs() < 1e-3, "{g:?}");
-        assert_eq!(g.count, 3);
+        let g = c.gaps(me, &[n(2, 300, 500), n(3, 200, 400)]);
+        assert_eq!((g.ahead, g.behind, g.count), (QUARTER_TURN, HALF_TURN, 3));
         // Clockwise rotation swaps them.
         let c = Circle::with(300, 400, 100, -100);
-        let g = c.gaps(Vec2::new(400.0, 400.0), &[n(2, 300, 500), n(3, 200, 400)]);
-        assert!((g.ahead - PI).abs() < 1e-3 && (g.behind - PI / 2.0).abs() < 1e-3);
+        let g = c.gaps(me, &[n(2, 300, 500), n(3, 200, 400)]);
+        assert_eq!((g.ahead, g.behind), (HALF_TURN, QUARTER_TURN));
     }
 
     #[test]
     fn cars_far_off_the_circle_are_not_spaced_against() {
         let c = Circle::with(300, 400, 100, 100);
-        let g = c.gaps(Vec2::new(400.0, 400.0), &[n(2, 330, 410), n(3, 200, 400)]);
+        let g = c.gaps(IVec2::from_units(400, 400), &[n(2, 330, 410), n(3, 200, 400)]);
         assert_eq!(g.count, 2);
-        assert!((g.ahead - PI).abs() < 1e-3);
+        assert_eq!(g.ahead, HALF_TURN);
     }
 
     #[test]
     fn on_circle_evenly_spaced_moves_tangentially() {
         let mut c = Circle::with(300, 400, 100, 100);
-        let p = c.plan(&me(400.0, 400.0), &[n(2, 200, 400)], None);
+        let p = c.plan(&at(400, 400), &[n(2, 200, 400)], None);
         assert!(p.converged);
-        match p.guidance {
-            Guidance::VelocityF(v) => assert!((v.y - 100.0).abs() < 0.5 && v.x.abs() < 0.5),
-            other => panic!("{other:?}"),
-        }
+        assert_eq!(velocity(&p), (0, 100));
     }
 
     #[test]
     fn car_with_small_gap_ahead_slows_down() {
         let mut c = Circle::with(300, 400, 100, 100);
         // Neighbour 45 degrees ahead: gap ahead pi/4, behind 7pi/4 -> slow to zero.
-        let p = c.plan(&me(400.0, 400.0), &[n(2, 371, 471)], None);
+        let p = c.plan(&at(400, 400), &[n(2, 371, 471)], None);
         assert!(!p.converged);
-        match p.guidance {
-            Guidance::VelocityF(v) => assert!(v.norm() < 1.0, "{v:?}"),
-            other => panic!("{other:?}"),
-        }
+        let (vx, vy) = velocity(&p);
+        assert!(vx.abs() <= 1 && vy.abs() <= 1, "{p:?}");
         // The other car sees the big gap ahead and speeds up.
-        let p = c.plan(&me(371.0, 471.0), &[n(1, 400, 400)], None);
-        match p.guidance {
-            Guidance::VelocityF(v) => assert!(v.norm() > 150.0, "{v:?}"),
-            other => panic!("{other:?}"),
-        }
+        let p = c.plan(&at(371, 471), &[n(1, 400, 400)], None);
+        let (vx, vy) = velocity(&p);
+        assert!(i32::from(vx).pow(2) + i32::from(vy).pow(2) > 150 * 150, "{p:?}");
     }
 
     #[test]
     fn pulled_onto_radius() {
         let mut c = Circle::with(300, 400, 100, 0);
-        let p = c.plan(&me(350.0, 400.0), &[], None);
-        match p.guidance {
-            Guidance::VelocityF(v) => assert!(v.x > 100.0 && v.y.abs() < 1.0, "{v:?}"),
-            other => panic!("{other:?}"),
-        }
+        let p = c.plan(&at(350, 400), &[], None);
+        let (vx, vy) = velocity(&p);
+        assert!(vx > 100 && vy == 0, "{p:?}");
         // On the radius, alone and not rotating: hold.
-        assert_eq!(c.plan(&me(400.0, 400.0), &[], None).guidance, Guidance::Hold);
+        assert_eq!(c.plan(&at(400, 400), &[], None).guidance, Guidance::Hold);
+    }
+
+    #[test]
+    fn a_waypoint_moves_the_centre() {
+        let mut c = Circle::with(300, 400, 100, 0);
+        let w = Waypoint {
+            x: 500,
+            y: 400,
+            index: 0,
+        };
+        assert_eq!(c.plan(&at(400, 400), &[], Some(w)).guidance, Guidance::Hold);
+        assert!(!c.plan(&at(300, 400), &[], None).converged);
     }
 }

@@ -7,10 +7,11 @@
 //! its arrival radius (until the next waypoint). A follower without a fresh leader stops
 //! ([`Phase::NoReference`]).
 
-use crate::geom::{mrad_to_rad, Vec2};
-use crate::law::{error_units, Guidance, Law, LawInput, Me, Plan, Waypoint};
+use crate::fixed::{from_mrad, fx, IVec2};
+use crate::law::{error_units_fx, Guidance, Law, LawInput, Plan, Waypoint};
 use crate::param::{Param, Values};
-use crate::{Neighbour, Phase, MM_PER_UNIT};
+use crate::safety::travel;
+use crate::{CarPose, Neighbour, Phase};
 
 /// Formation geometry.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -25,12 +26,14 @@ pub enum Shape {
     Wedge = 1,
 }
 
-/// Gain of the position correction, 1/s.
-const POSITION_GAIN: f32 = 1.2;
+/// Gain of the position correction: 1.2/s, which is 3 mm/s per tracking unit of error.
+const POSITION_GAIN_MM_S_PER_UNIT: i32 = 3;
 /// Slot error below which a follower counts as in formation, tracking units (30 mm).
-pub const TOLERANCE_UNITS: f32 = 12.0;
+pub const TOLERANCE_UNITS: i32 = 12;
 /// A leader slower than this (mm/s) counts as standing still.
-const LEADER_STILL_MM_S: f32 = 15.0;
+const LEADER_STILL_MM_S: i16 = 15;
+/// 1/sqrt(2) in Q14.
+const FRAC_1_SQRT_2_Q14: i32 = 11_585;
 
 const SHAPE: usize = 0;
 const LEADER: usize = 1;
@@ -44,8 +47,7 @@ pub struct Formation {
     shape: Shape,
     leader: u8,
     slot: Option<u8>,
-    spacing: f32,
-    speed: f32,
+    spacing_units: u16,
     speed_mm_s: u16,
     /// Index of the last waypoint the leader reached.
     reached: Option<u16>,
@@ -85,7 +87,13 @@ impl Law for Formation {
     }
 
     fn step(&mut self, input: &LawInput<'_>) -> Plan {
-        self.plan(&input.me(), input.neighbours, input.waypoint, input.options.arrival_units)
+        self.plan(
+            input.id,
+            &input.own,
+            input.neighbours,
+            input.waypoint,
+            input.options.arrival_units,
+        )
     }
 
     fn leads(&self, id: u8) -> bool {
@@ -107,8 +115,7 @@ impl Formation {
             shape,
             leader,
             slot,
-            spacing: f32::from(spacing_units),
-            speed: f32::from(speed_mm_s),
+            spacing_units,
             speed_mm_s,
             reached: None,
             holding: false,
@@ -135,37 +142,41 @@ impl Formation {
         )
     }
 
-    /// Offset of slot `k` in the leader's frame (forward, left), tracking units.
-    pub fn slot_offset(&self, k: u8) -> Vec2 {
-        let s = self.spacing;
+    /// Offset of slot `k` in the leader's frame (forward, left), 1/16 tracking unit.
+    pub fn slot_offset(&self, k: u8) -> IVec2 {
+        let s = fx(i32::from(self.spacing_units));
         match self.shape {
-            Shape::Line => Vec2::new(-(f32::from(k) + 1.0) * s, 0.0),
+            Shape::Line => IVec2::new(-(i32::from(k) + 1) * s, 0),
             Shape::Wedge => {
-                let row = f32::from(k / 2 + 1);
-                let side = if k.is_multiple_of(2) { 1.0 } else { -1.0 };
-                let d = row * s * core::f32::consts::FRAC_1_SQRT_2;
-                Vec2::new(-d, side * d)
+                let row = i32::from(k / 2 + 1);
+                let d = IVec2::new(row * s, 0).scale_q14(FRAC_1_SQRT_2_Q14).x;
+                IVec2::new(-d, if k.is_multiple_of(2) { d } else { -d })
             }
         }
     }
 
-    fn my_slot(&self, me: &Me, fresh: &[Neighbour]) -> u8 {
+    fn my_slot(&self, id: u8, fresh: &[Neighbour]) -> u8 {
         self.slot.unwrap_or_else(|| {
             let rank = fresh
                 .iter()
-                .filter(|n| n.id != self.leader && n.id < me.id)
+                .filter(|n| n.id != self.leader && n.id < id)
                 .count();
             u8::try_from(rank).unwrap_or(u8::MAX)
         })
     }
 
-    fn plan_leader(&mut self, me: &Me, waypoint: Option<Waypoint>, arrival_units: u8) -> Plan {
+    fn plan_leader(&mut self, own: &CarPose, waypoint: Option<Waypoint>, arrival_units: u8) -> Plan {
         match waypoint.filter(|w| Some(w.index) != self.reached) {
             Some(w) => {
-                let d = (Vec2::new(f32::from(w.x), f32::from(w.y)) - me.pos).norm();
-                if d <= f32::from(arrival_units) {
+                let d2 = crate::imath::dist2(
+                    i32::from(w.x) - i32::from(own.x),
+                    i32::from(w.y) - i32::from(own.y),
+                );
+                // At most 65 535 (the root of a u32): fits.
+                let e = crate::imath::isqrt(d2) as u16;
+                if d2 <= u32::from(arrival_units).pow(2) {
                     self.reached = Some(w.index);
-                    return Plan::hold(Phase::Hold, true, error_units(d));
+                    return Plan::hold(Phase::Hold, true, e);
                 }
                 Plan {
                     guidance: Guidance::Point {
@@ -175,57 +186,60 @@ impl Formation {
                     },
                     phase: Phase::Approach,
                     converged: false,
-                    error_units: error_units(d),
+                    error_units: e,
                 }
             }
             None => Plan::hold(Phase::Hold, true, 0),
         }
     }
 
-    /// One period for car `me` with its fresh neighbours, the latest waypoint and the
-    /// arrival radius.
+    /// One period for car `id` at `own` with its fresh neighbours, the latest waypoint and
+    /// the arrival radius.
     fn plan(
         &mut self,
-        me: &Me,
+        id: u8,
+        own: &CarPose,
         fresh: &[Neighbour],
         waypoint: Option<Waypoint>,
         arrival_units: u8,
     ) -> Plan {
-        if me.id == self.leader {
-            return self.plan_leader(me, waypoint, arrival_units);
+        if id == self.leader {
+            return self.plan_leader(own, waypoint, arrival_units);
         }
         let Some(leader) = fresh.iter().find(|n| n.id == self.leader) else {
             self.holding = false;
             return Plan::hold(Phase::NoReference, false, 0);
         };
-        let heading = mrad_to_rad(leader.pose.heading_mrad);
-        let fwd = Vec2::from_angle(heading);
-        let v_leader = f32::from(leader.pose.velocity_mm_s);
-        let age_s = leader.age_us as f32 * 1e-6;
-        let leader_pos = Vec2::new(f32::from(leader.pose.x), f32::from(leader.pose.y))
-            + fwd * (v_leader * age_s / MM_PER_UNIT);
-        let off = self.slot_offset(self.my_slot(me, fresh));
-        let target = leader_pos + fwd * off.x + fwd.perp() * off.y;
-        let err = target - me.pos;
+        // Unit vector of the leader's heading, Q14.
+        let fwd = IVec2::from_angle(from_mrad(i32::from(leader.pose.heading_mrad)));
+        // The leader's velocity, 1/16 mm/s, and where it is now (advanced over the age of
+        // its broadcast), 1/16 unit.
+        let v_leader = fwd.along(fx(i32::from(leader.pose.velocity_mm_s)));
+        let leader_pos = IVec2::from_units(i32::from(leader.pose.x), i32::from(leader.pose.y))
+            + travel(v_leader, leader.age_us);
+        let off = self.slot_offset(self.my_slot(id, fresh));
+        let target = leader_pos + fwd.along(off.x) + fwd.perp().along(off.y);
+        let err = target - IVec2::from_units(i32::from(own.x), i32::from(own.y));
         let e = err.norm();
-        let leader_still = v_leader.abs() < LEADER_STILL_MM_S;
+        let tolerance = fx(TOLERANCE_UNITS);
+        let leader_still = leader.pose.velocity_mm_s.abs() < LEADER_STILL_MM_S;
         // Hold once in the slot behind a standing leader; move again when pushed out of it.
-        if leader_still && (e < TOLERANCE_UNITS || (self.holding && e < 1.5 * TOLERANCE_UNITS)) {
+        if leader_still && (e < tolerance || (self.holding && 2 * e < 3 * tolerance)) {
             self.holding = true;
-            return Plan::hold(Phase::Hold, true, error_units(e));
+            return Plan::hold(Phase::Hold, true, error_units_fx(e));
         }
         self.holding = false;
-        let v = fwd * v_leader + err * (POSITION_GAIN * MM_PER_UNIT);
-        let max = (2.0 * self.speed).max(300.0);
+        let v = v_leader + err.times(POSITION_GAIN_MM_S_PER_UNIT);
+        let max = fx((2 * i32::from(self.speed_mm_s)).max(300));
         Plan {
-            guidance: Guidance::VelocityF(v.clamp_norm(max)),
-            phase: if e < TOLERANCE_UNITS {
+            guidance: Guidance::velocity(v.clamp_norm(max)),
+            phase: if e < tolerance {
                 Phase::Track
             } else {
                 Phase::Approach
             },
-            converged: e < TOLERANCE_UNITS,
-            error_units: error_units(e),
+            converged: e < tolerance,
+            error_units: error_units_fx(e),
         }
     }
 }
@@ -233,7 +247,6 @@ impl Formation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::CarPose;
 
     fn leader_at(x: u16, y: u16, heading_mrad: u16, v: i16) -> Neighbour {
         Neighbour {
@@ -248,27 +261,25 @@ mod tests {
         }
     }
 
-    fn me(id: u8, x: f32, y: f32) -> Me {
-        Me {
-            id,
-            pos: Vec2::new(x, y),
-            heading: 0.0,
-            speed: 0.0,
+    fn at(x: u16, y: u16) -> CarPose {
+        CarPose {
+            x,
+            y,
+            ..CarPose::default()
         }
     }
 
     #[test]
     fn slot_offsets() {
         let line = Formation::with(Shape::Line, 1, None, 50, 100);
-        assert_eq!(line.slot_offset(0), Vec2::new(-50.0, 0.0));
-        assert_eq!(line.slot_offset(2), Vec2::new(-150.0, 0.0));
+        assert_eq!(line.slot_offset(0), IVec2::from_units(-50, 0));
+        assert_eq!(line.slot_offset(2), IVec2::from_units(-150, 0));
         let wedge = Formation::with(Shape::Wedge, 1, None, 50, 100);
-        let o0 = wedge.slot_offset(0);
-        let o1 = wedge.slot_offset(1);
+        // 50 / sqrt(2) = 35.355 units = 565.7 sixteenths.
+        assert_eq!(wedge.slot_offset(0), IVec2::new(-566, 566));
+        assert_eq!(wedge.slot_offset(1), IVec2::new(-566, -566));
         let o2 = wedge.slot_offset(2);
-        assert!((o0.x + 35.355).abs() < 0.01 && (o0.y - 35.355).abs() < 0.01);
-        assert!((o1.x + 35.355).abs() < 0.01 && (o1.y + 35.355).abs() < 0.01);
-        assert!((o2.norm() - 100.0).abs() < 0.01 && o2.y > 0.0);
+        assert!((o2.norm() - fx(100)).abs() <= 1 && o2.y > 0, "{o2:?}");
     }
 
     #[test]
@@ -276,15 +287,17 @@ mod tests {
         // Leader at (300, 400) heading +Y (1571 mrad), standing. Slot 0 of a line is 50 below.
         let mut f = Formation::with(Shape::Line, 1, Some(0), 50, 100);
         let n = [leader_at(300, 400, 1571, 0)];
-        let p = f.plan(&me(2, 300.0, 300.0), &n, None, 8);
+        let p = f.plan(2, &at(300, 300), &n, None, 8);
         assert_eq!(p.phase, Phase::Approach);
         assert!(p.error_units.abs_diff(50) <= 1, "{p:?}");
         match p.guidance {
-            Guidance::VelocityF(v) => assert!(v.y > 50.0 && v.x.abs() < 1.0),
+            Guidance::Velocity { vx_mm_s, vy_mm_s } => {
+                assert!(vy_mm_s > 50 && vx_mm_s.abs() < 1, "{p:?}")
+            }
             other => panic!("{other:?}"),
         }
         // In the slot: hold.
-        let p = f.plan(&me(2, 300.0, 350.0), &n, None, 8);
+        let p = f.plan(2, &at(300, 350), &n, None, 8);
         assert_eq!(p.guidance, Guidance::Hold);
         assert!(p.converged);
     }
@@ -293,12 +306,25 @@ mod tests {
     fn follower_matches_leader_velocity() {
         let mut f = Formation::with(Shape::Line, 1, Some(0), 50, 100);
         let n = [leader_at(300, 400, 0, 200)];
-        let p = f.plan(&me(2, 250.0, 400.0), &n, None, 8);
-        match p.guidance {
-            Guidance::VelocityF(v) => assert!((v.x - 200.0).abs() < 1.0 && v.y.abs() < 1.0),
-            other => panic!("{other:?}"),
-        }
+        let p = f.plan(2, &at(250, 400), &n, None, 8);
+        assert_eq!(
+            p.guidance,
+            Guidance::Velocity {
+                vx_mm_s: 200,
+                vy_mm_s: 0
+            }
+        );
         assert_eq!(p.phase, Phase::Track);
+    }
+
+    #[test]
+    fn follower_uses_the_age_of_the_broadcast() {
+        // The leader drove on for 0.5 s at 200 mm/s since it was heard: 40 units further.
+        let mut f = Formation::with(Shape::Line, 1, Some(0), 50, 100);
+        let mut n = [leader_at(300, 400, 0, 200)];
+        n[0].age_us = 500_000;
+        let p = f.plan(2, &at(290, 400), &n, None, 8);
+        assert_eq!(p.error_units, 0, "{p:?}");
     }
 
     #[test]
@@ -308,16 +334,16 @@ mod tests {
         n[1].id = 3;
         n[2].id = 7;
         // Car 5 is behind car 3 only: slot 1, 80 units behind the leader.
-        let p = f.plan(&me(5, 300.0, 320.0), &n, None, 8);
+        let p = f.plan(5, &at(300, 320), &n, None, 8);
         assert!(p.converged, "{p:?}");
-        let p = f.plan(&me(2, 300.0, 320.0), &n, None, 8);
+        let p = f.plan(2, &at(300, 320), &n, None, 8);
         assert!(!p.converged);
     }
 
     #[test]
     fn missing_leader_stops() {
         let mut f = Formation::with(Shape::Wedge, 1, None, 40, 100);
-        let p = f.plan(&me(2, 300.0, 320.0), &[], None, 8);
+        let p = f.plan(2, &at(300, 320), &[], None, 8);
         assert_eq!(p.guidance, Guidance::Hold);
         assert_eq!(p.phase, Phase::NoReference);
     }
@@ -325,13 +351,13 @@ mod tests {
     #[test]
     fn leader_drives_to_waypoint_then_holds() {
         let mut f = Formation::with(Shape::Line, 1, None, 40, 150);
-        assert_eq!(f.plan(&me(1, 100.0, 100.0), &[], None, 8).guidance, Guidance::Hold);
+        assert_eq!(f.plan(1, &at(100, 100), &[], None, 8).guidance, Guidance::Hold);
         let w = Some(Waypoint {
             x: 100,
             y: 500,
             index: 0,
         });
-        let p = f.plan(&me(1, 100.0, 100.0), &[], w, 8);
+        let p = f.plan(1, &at(100, 100), &[], w, 8);
         assert_eq!(
             p.guidance,
             Guidance::Point {
@@ -340,10 +366,10 @@ mod tests {
                 speed_mm_s: 150
             }
         );
-        let p = f.plan(&me(1, 100.0, 495.0), &[], w, 8);
+        let p = f.plan(1, &at(100, 495), &[], w, 8);
         assert_eq!(p.guidance, Guidance::Hold);
         // Reached: it holds there even when pushed away, until the next waypoint.
-        let p = f.plan(&me(1, 100.0, 400.0), &[], w, 8);
+        let p = f.plan(1, &at(100, 400), &[], w, 8);
         assert_eq!(p.guidance, Guidance::Hold);
         let next = Waypoint {
             x: 100,
@@ -351,13 +377,13 @@ mod tests {
             index: 1,
         };
         assert!(matches!(
-            f.plan(&me(1, 100.0, 400.0), &[], Some(next), 8).guidance,
+            f.plan(1, &at(100, 400), &[], Some(next), 8).guidance,
             Guidance::Point { .. }
         ));
         // A wider arrival radius counts it as there sooner.
         let third = Waypoint { index: 2, ..next };
         assert_eq!(
-            f.plan(&me(1, 100.0, 480.0), &[], Some(third), 30).guidance,
+            f.plan(1, &at(100, 480), &[], Some(third), 30).guidance,
             Guidance::Hold
         );
     }

@@ -7,25 +7,26 @@
 //! distance to it decays as `exp(-GAIN t)`; see `docs/maneuvers.md` for the bound and the
 //! measured times.
 
-use crate::geom::Vec2;
-use crate::law::{error_units, Guidance, Law, LawInput, Me, Plan};
+use crate::fixed::{fx, IVec2};
+use crate::law::{error_units_fx, Guidance, Law, LawInput, Plan};
 use crate::param::{Param, Values};
-use crate::{Neighbour, Phase, MM_PER_UNIT};
+use crate::{CarPose, Neighbour, Phase};
 
-/// Consensus gain, 1/s.
-pub const GAIN: f32 = 0.8;
-/// A holding car starts again only when the consensus point is this much beyond the radius.
-const HYSTERESIS: f32 = 1.3;
+/// Consensus gain: 0.8/s, which is 2 mm/s per tracking unit of distance.
+pub const GAIN_MM_S_PER_UNIT: i32 = 2;
+/// A holding car starts again only when the consensus point is this much beyond the radius:
+/// 13/10.
+const HYSTERESIS: (i32, i32) = (13, 10);
 /// A neighbour nearer than this (tracking units, 325 mm: the avoidance band of the default
 /// [`crate::SafetyConfig`] plus a little) that is closer to the consensus point and within 60
 /// degrees of the way there blocks the car: it holds instead of pushing into the avoidance field.
-pub const BLOCK_UNITS: f32 = 130.0;
+pub const BLOCK_UNITS: i32 = 130;
 
 /// The rendezvous law.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rendezvous {
-    radius: f32,
-    speed: f32,
+    radius_units: u16,
+    speed_mm_s: u16,
     holding: bool,
 }
 
@@ -46,28 +47,35 @@ impl Law for Rendezvous {
     }
 
     fn step(&mut self, input: &LawInput<'_>) -> Plan {
-        self.plan(&input.me(), input.neighbours)
+        self.plan(&input.own, input.neighbours)
     }
+}
+
+/// A pose's position, 1/16 tracking unit.
+fn position(p: &CarPose) -> IVec2 {
+    IVec2::from_units(i32::from(p.x), i32::from(p.y))
 }
 
 impl Rendezvous {
     /// Arrival radius in tracking units, maximum speed in mm/s.
     pub fn with(radius_units: u16, speed_mm_s: u16) -> Self {
         Self {
-            radius: f32::from(radius_units),
-            speed: f32::from(speed_mm_s),
+            radius_units,
+            speed_mm_s,
             holding: false,
         }
     }
 
-    /// The consensus point: mean of this car and its fresh neighbours, tracking units.
-    pub fn consensus(me: &Me, fresh: &[Neighbour]) -> Vec2 {
-        let mut sum = me.pos;
+    /// The consensus point: mean of this car (at `own`) and its fresh neighbours, 1/16
+    /// tracking unit (rounded towards zero).
+    pub fn consensus(own: &CarPose, fresh: &[Neighbour]) -> IVec2 {
+        let mut sum = position(own);
         for n in fresh {
-            sum = sum + Vec2::new(f32::from(n.pose.x), f32::from(n.pose.y));
+            sum = sum + position(&n.pose);
         }
         // At most a few dozen cars: the count converts exactly.
-        sum * (1.0 / (fresh.len() as f32 + 1.0))
+        let count = fresh.len() as i32 + 1;
+        IVec2::new(sum.x / count, sum.y / count)
     }
 
     /// The group command for this rendezvous.
@@ -81,33 +89,45 @@ impl Rendezvous {
         )
     }
 
-    /// One period for car `me` with its fresh neighbours.
-    fn plan(&mut self, me: &Me, fresh: &[Neighbour]) -> Plan {
-        let c = Self::consensus(me, fresh);
-        let err = c - me.pos;
+    /// One period for the car at `own` with its fresh neighbours.
+    fn plan(&mut self, own: &CarPose, fresh: &[Neighbour]) -> Plan {
+        let me = position(own);
+        let c = Self::consensus(own, fresh);
+        let err = c - me;
+        let e2 = err.len2();
         let e = err.norm();
+        let radius = fx(i32::from(self.radius_units));
         let limit = if self.holding {
-            self.radius * HYSTERESIS
+            radius * HYSTERESIS.0 / HYSTERESIS.1
         } else {
-            self.radius
+            radius
         };
+        let block = fx(BLOCK_UNITS);
+        let block = i64::from(if self.holding { block * 6 / 5 } else { block });
         let blocked = fresh.iter().any(|n| {
-            let q = Vec2::new(f32::from(n.pose.x), f32::from(n.pose.y));
-            let to = q - me.pos;
-            let d = to.norm();
-            d < BLOCK_UNITS * if self.holding { 1.2 } else { 1.0 }
-                && (c - q).norm() < e
-                && to.dot(err) > 0.5 * d * e
+            let q = position(&n.pose);
+            let to = q - me;
+            let d2 = to.len2();
+            // Near, nearer the consensus point, and within 60 degrees of the way there:
+            // to . err > |to| |err| / 2, squared.
+            let along = to.dot(err);
+            d2 < (block * block) as u64
+                && (c - q).len2() < e2
+                && along > 0
+                // Saturating: far outside the arena the test only errs towards not blocked.
+                && (along as u64).saturating_mul(along as u64).saturating_mul(4)
+                    > d2.saturating_mul(e2)
         });
-        self.holding = e <= limit || (blocked && e <= self.radius + BLOCK_UNITS);
+        self.holding = e <= limit || (blocked && e <= radius + fx(BLOCK_UNITS));
         if self.holding {
-            return Plan::hold(Phase::Hold, true, error_units(e));
+            return Plan::hold(Phase::Hold, true, error_units_fx(e));
         }
+        let v = err.times(GAIN_MM_S_PER_UNIT);
         Plan {
-            guidance: Guidance::VelocityF((err * (GAIN * MM_PER_UNIT)).clamp_norm(self.speed)),
+            guidance: Guidance::velocity(v.clamp_norm(fx(i32::from(self.speed_mm_s)))),
             phase: Phase::Approach,
             converged: false,
-            error_units: error_units(e),
+            error_units: error_units_fx(e),
         }
     }
 }
@@ -115,26 +135,20 @@ impl Rendezvous {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::CarPose;
 
     fn n(id: u8, x: u16, y: u16) -> Neighbour {
         Neighbour {
             id,
-            pose: CarPose {
-                x,
-                y,
-                ..CarPose::default()
-            },
+            pose: at(x, y),
             age_us: 0,
         }
     }
 
-    fn me(x: f32, y: f32) -> Me {
-        Me {
-            id: 1,
-            pos: Vec2::new(x, y),
-            heading: 0.0,
-            speed: 0.0,
+    fn at(x: u16, y: u16) -> CarPose {
+        CarPose {
+            x,
+            y,
+            ..CarPose::default()
         }
     }
 
@@ -144,37 +158,44 @@ mod tests {
         let fresh = [n(2, 400, 100), n(3, 100, 400)];
         // Mean of (100,100), (400,100), (100,400) is (200,200).
         assert_eq!(
-            Rendezvous::consensus(&me(100.0, 100.0), &fresh),
-            Vec2::new(200.0, 200.0)
+            Rendezvous::consensus(&at(100, 100), &fresh),
+            IVec2::from_units(200, 200)
         );
-        let p = r.plan(&me(100.0, 100.0), &fresh);
-        match p.guidance {
-            Guidance::VelocityF(v) => {
-                assert!((v.norm() - 200.0).abs() < 0.1, "saturated at the speed");
-                assert!((v.x - v.y).abs() < 0.1);
+        let p = r.plan(&at(100, 100), &fresh);
+        // Saturated at the speed, towards the mean.
+        assert_eq!(
+            p.guidance,
+            Guidance::Velocity {
+                vx_mm_s: 141,
+                vy_mm_s: 141
             }
-            other => panic!("{other:?}"),
-        }
+        );
         assert_eq!(p.error_units, 141);
     }
 
     #[test]
     fn proportional_inside_saturation() {
         let mut r = Rendezvous::with(5, 1000);
-        let p = r.plan(&me(90.0, 100.0), &[n(2, 110, 100)]);
+        let p = r.plan(&at(90, 100), &[n(2, 110, 100)]);
         // 10 units = 25 mm from the mean: 0.8/s * 25 mm = 20 mm/s.
-        assert_eq!(p.guidance, Guidance::VelocityF(Vec2::new(20.0, 0.0)));
+        assert_eq!(
+            p.guidance,
+            Guidance::Velocity {
+                vx_mm_s: 20,
+                vy_mm_s: 0
+            }
+        );
     }
 
     #[test]
     fn holds_within_radius_with_hysteresis() {
         let mut r = Rendezvous::with(20, 200);
-        let p = r.plan(&me(100.0, 100.0), &[n(2, 130, 100)]);
+        let p = r.plan(&at(100, 100), &[n(2, 130, 100)]);
         assert!(p.converged && p.guidance == Guidance::Hold);
         // 22 units away: beyond the radius, within the hysteresis.
-        let p = r.plan(&me(100.0, 100.0), &[n(2, 144, 100)]);
+        let p = r.plan(&at(100, 100), &[n(2, 144, 100)]);
         assert!(p.converged);
-        let p = r.plan(&me(100.0, 100.0), &[n(2, 160, 100)]);
+        let p = r.plan(&at(100, 100), &[n(2, 160, 100)]);
         assert!(!p.converged && p.phase == Phase::Approach);
     }
 
@@ -183,16 +204,16 @@ mod tests {
         let mut r = Rendezvous::with(20, 200);
         // Mean at (200, 100); a car at (180, 100) lies between me and it, 80 units away.
         let fresh = [n(2, 180, 100), n(3, 320, 100)];
-        let p = r.plan(&me(100.0, 100.0), &fresh);
+        let p = r.plan(&at(100, 100), &fresh);
         assert!(p.converged && p.guidance == Guidance::Hold, "{p:?}");
         // The same car off to the side does not block.
         let fresh = [n(2, 100, 180), n(3, 400, 20)];
-        assert!(!r.plan(&me(100.0, 100.0), &fresh).converged);
+        assert!(!r.plan(&at(100, 100), &fresh).converged);
     }
 
     #[test]
     fn alone_is_already_there() {
         let mut r = Rendezvous::with(20, 200);
-        assert!(r.plan(&me(300.0, 300.0), &[]).converged);
+        assert!(r.plan(&at(300, 300), &[]).converged);
     }
 }

@@ -1,4 +1,4 @@
-//! `softcore`: the in-house RV32IMA SoC of `verilator-tb`. Same register layouts as qemu virt
+//! `softcore`: the in-house RV32IMAC SoC of `verilator-tb`. Same register layouts as qemu virt
 //! (16550 UARTs, CLINT, PLIC, SiFive-style exit register), so the drivers are shared; only the
 //! addresses and clocks below differ. The LBC link is UART0, the radio UART1 (no PCI), and
 //! defmt frames leave through the simulation-control console register (feature
