@@ -1,6 +1,7 @@
 //! End to end with the camera, on the soft core's model in virtual time: the arena renders each
-//! car's view into its frame grabber and streams it into the SoC's vision unit at 15 fps of
-//! world time (and at 30 fps, the tracker's rate); car 1 drives up the arena and to the side by
+//! car's view into its frame grabber at 15 fps of world time with the firmware's own pixel
+//! pipeline (a board without the vision unit), and at 30 fps, the tracker's rate, streamed
+//! into the SoC's vision unit; car 1 drives up the arena and to the side by
 //! a go-to group maneuver, and car 2 follows it by the camera alone (`CameraFollow`: marker
 //! class of car 1, 200 units = 500 mm). The follower must see the leader in its camera report,
 //! move with it, and keep within the band documented in `docs/camera.md` (reference points
@@ -84,9 +85,17 @@ fn camera_report(world: &mut World) -> ubc_app::program::console::CameraReport {
     }
 }
 
+/// At 15 fps on a board without the vision unit: the firmware runs the pixel pipeline itself.
 #[test]
 fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
-    follow(FeedConfig::default());
+    let frames_per_s = follow(FeedConfig {
+        vision_unit: false,
+        ..FeedConfig::default()
+    });
+    assert!(
+        (14.5..=15.5).contains(&frames_per_s),
+        "the firmware processed {frames_per_s:.1} frames per second"
+    );
 }
 
 /// At the tracker's 30 Hz, on the soft core's clock: the vision unit does the pixels, so the
