@@ -7,7 +7,7 @@
 // status bit (the interrupt, when enabled) is set. The register block reads like the
 // `vision::run_window` layout, so the firmware's reader is the same on every board.
 //
-// Timing (the model in soc-model/src/vision.rs computes the same cycles):
+// Timing (the model in soc-model/src/vision_unit.rs computes the same cycles):
 //   an event in cycle t is classified at the edge ending t (table read),
 //   in t+1 a pixel closes the open run or a line end closes it (one buffer write),
 //   in t+2 a line end writes its row-end word and a frame end publishes the frame:
