@@ -2,7 +2,8 @@
 //! car's RAM file (a shared file QEMU maps); `almc camera snapshot` finds and reads that file,
 //! and the firmware's camera report matches what the host sees in it. The host also plays the
 //! vision unit QEMU's board lacks: the firmware finds the run window in its RAM, loads the class
-//! table and enables it, and builds its blobs from the runs the host publishes there.
+//! table and enables it, and builds its blobs from the runs the host publishes there. Without
+//! the unit (`vision_unit = false`) there is no run window and the firmware uses the pixels.
 
 use arena::camera_feed::FeedConfig;
 use arena::world::{CarSpec, EngineKind, World, WorldConfig};
@@ -36,7 +37,7 @@ fn wait_ready(world: &mut World, id: u8, deadline: Duration) {
     }
 }
 
-fn two_cars(engine: EngineKind) -> World {
+fn two_cars(engine: EngineKind, vision_unit: bool) -> World {
     let elf = engine.default_firmware().expect("firmware ELF");
     let mut cfg = WorldConfig::new(
         elf,
@@ -46,7 +47,10 @@ fn two_cars(engine: EngineKind) -> World {
         ],
     );
     cfg.engine = engine;
-    cfg.camera = Some(FeedConfig::default());
+    cfg.camera = Some(FeedConfig {
+        vision_unit,
+        ..FeedConfig::default()
+    });
     World::start(&cfg).expect("world starts")
 }
 
@@ -71,7 +75,7 @@ fn qemu_window_is_what_the_snapshot_tool_reads() {
     if qemu_harness::skip_qemu_tests("qemu_window_is_what_the_snapshot_tool_reads") {
         return;
     }
-    let mut world = two_cars(EngineKind::Qemu);
+    let mut world = two_cars(EngineKind::Qemu, true);
     let ram = world
         .run_dir()
         .join(arena::camera_feed::ram_file_name(FOLLOWER));
@@ -118,6 +122,24 @@ fn qemu_window_is_what_the_snapshot_tool_reads() {
     )
     .unwrap();
     assert_eq!(from_runs.blobs().first().map(|b| b.class), Some(class));
+    drop(world);
+
+    // Without the unit the RAM file has no run window, and the firmware finds the leader in
+    // the pixels itself.
+    let mut world = two_cars(EngineKind::Qemu, false);
+    let report = first_report(&mut world);
+    assert_eq!(report.blob.map(|(_, b)| b.class), Some(class), "{report:?}");
+    let ram = world
+        .run_dir()
+        .join(arena::camera_feed::ram_file_name(FOLLOWER));
+    let file = qemu_harness::SharedRam::open_read_only(&ram).unwrap();
+    let mut head = [0u8; 72];
+    file.read_at(arena::camera_feed::RUN_WINDOW_OFFSET, &mut head)
+        .unwrap();
+    assert!(
+        head.iter().all(|&b| b == 0),
+        "a run window without the unit"
+    );
     drop(world);
     let me = std::process::id().to_string();
     let left = std::process::Command::new("pgrep")

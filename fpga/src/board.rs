@@ -156,6 +156,9 @@ pub struct Target {
     /// The SoC clock is [`SOC_CLOCK_MHZ`] / 2^`clock_div_log2` (0 in every figure; more for
     /// bring-up at a clock the design meets). The core alone ignores it.
     pub clock_div_log2: u32,
+    /// The SoC with its vision unit (the SoC only; off by default: the UP5K SoC with it does
+    /// not fit, docs/fpga.md).
+    pub vision_unit: bool,
 }
 
 impl Target {
@@ -166,6 +169,7 @@ impl Target {
             design: Design::Soc,
             seed: 1,
             clock_div_log2: 0,
+            vision_unit: false,
         }
     }
 
@@ -199,10 +203,16 @@ impl Target {
             (Design::Soc, n) if n > 0 => format!("-div{}", 1u32 << n.min(16)),
             _ => String::new(),
         };
+        let vision = if self.design == Design::Soc && self.vision_unit {
+            "-vision"
+        } else {
+            ""
+        };
         format!(
-            "{}-{}{}-seed{}",
+            "{}-{}{}{}-seed{}",
             self.board.name(),
             self.design.name(),
+            vision,
             div,
             self.seed
         )
@@ -301,6 +311,11 @@ mod tests {
         assert!((t.clock_mhz() - 3.703125).abs() < 1e-9);
         assert_eq!(t.dir_name(), "up5k-soc-div4-seed1");
         assert_eq!(Target::core(Board::Hx8k).dir_name(), "hx8k-core-seed1");
+        let v = Target {
+            vision_unit: true,
+            ..Target::soc(Board::Up5k)
+        };
+        assert_eq!(v.dir_name(), "up5k-soc-vision-seed1");
         // 0.45 % above the nominal clock
         let err = SOC_CLOCK_MHZ / SOC_CLOCK_NOMINAL_MHZ - 1.0;
         assert!((err - 0.004527).abs() < 1e-5, "{err}");

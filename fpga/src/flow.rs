@@ -132,6 +132,11 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
             target.clock_div_log2,
             target.top()
         ));
+        script.push_str(&format!(
+            "chparam -set VISION {} {}\n",
+            u8::from(target.vision_unit),
+            target.top()
+        ));
     }
     if target.design == Design::Vision {
         script.push_str(&format!(

@@ -26,8 +26,11 @@ pub struct FpgaArgs {
     #[arg(long, conflicts_with = "vision")]
     core: bool,
     /// Build the vision unit alone instead of the SoC (area and clock figures).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "vision_unit")]
     vision: bool,
+    /// Build the SoC with its vision unit (the UP5K SoC does not fit with it).
+    #[arg(long, conflicts_with = "core")]
+    vision_unit: bool,
 }
 
 fn parse_board(s: &str) -> Result<Board, String> {
@@ -58,6 +61,7 @@ pub fn run(args: FpgaArgs) -> Result<()> {
             },
             seed: args.seed,
             clock_div_log2: args.clock_div,
+            vision_unit: args.vision_unit,
         };
         stage(&format!("{} {}", board.title(), target.design.name()));
         let outcome = fpga::build(&target, &sources, &out)
