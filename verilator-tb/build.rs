@@ -12,6 +12,7 @@ const RTL: &[&str] = &[
     "rtl/uart16550.v",
     "rtl/clint.v",
     "rtl/plic.v",
+    "rtl/vision_unit.v",
 ];
 
 fn verilator_root() -> PathBuf {

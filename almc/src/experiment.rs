@@ -1,5 +1,5 @@
-//! `almc experiment run FILE [--out DIR] [--engine iss|qemu] [--threads N] [--realtime]
-//! [--live [ADDR]]`: plays an experiment file (see `docs/experiments.md`) in the arena, every
+//! `almc experiment run FILE [--out DIR] [--engine iss|qemu] [--vision-unit on|off] [--threads N]
+//! [--realtime] [--live [ADDR]]`: plays an experiment file (see `docs/experiments.md`) in the arena, every
 //! car on the soft core's model in virtual time (or in QEMU in real time), shows its progress
 //! and summary, and writes its results (with `--live`, also serves them to Foxglove while it
 //! runs); `almc experiment check FILE` only checks the file.
@@ -46,6 +46,10 @@ pub struct RunArgs {
     /// time) or `qemu` (real time).
     #[arg(long, value_parser = ["iss", "qemu"])]
     engine: Option<String>,
+    /// The cars' vision unit, overriding the file's `vision_unit`: `on` (the SoC's pixel
+    /// pipeline makes the runs) or `off` (boards without it: the firmware processes the pixels).
+    #[arg(long, value_name = "on|off", value_parser = ["on", "off"])]
+    vision_unit: Option<String>,
     /// Threads stepping the cars (iss); the outputs do not depend on it.
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
     threads: Option<u16>,
@@ -113,6 +117,9 @@ fn run_one(args: &RunArgs) -> ExitCode {
     };
     if let Some(engine) = args.engine.as_deref().and_then(EngineKind::parse) {
         exp.engine = engine;
+    }
+    if let Some(v) = args.vision_unit.as_deref() {
+        exp.vision_unit = v == "on";
     }
     if let Some(t) = args.threads {
         exp.threads = usize::from(t);

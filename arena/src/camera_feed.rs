@@ -5,6 +5,12 @@
 //! publishes it. [`read_window_frame`] is a host reader of RAM files (for
 //! `almc camera snapshot`).
 //!
+//! With the vision unit on (the default) each published frame also goes to the car's vision
+//! unit: on the SoC model into its camera port ([`soc_model::Soc::camera_frame`]); on QEMU,
+//! whose virt board has no such device, the host computes the runs with the class table the
+//! firmware loaded and publishes them into the run window at [`RUN_WINDOW_OFFSET`] of the RAM
+//! file ([`host_runs`]), so the same firmware takes the same path on both engines.
+//!
 //! Protocol order: the buffer's `buffer_seq` is set to `WRITING` (one write), the pixels are
 //! written, then `capture_us` with `buffer_seq`, then `ready`, then `sequence`, each a separate
 //! write in that order (`docs/camera.md`).
@@ -20,8 +26,13 @@ use std::path::{Path, PathBuf};
 use std::thread;
 use std::time::Duration;
 use vision::blobs::{BlobDetector, Detections};
+use vision::colour::rgb565_to_rgb332;
 use vision::colour::MARKER_CLASSES;
-use vision::frame::{field, FrameTicket, HeaderError, HeaderRepr, HEADER_LEN, WINDOW_LEN, WRITING};
+use vision::frame::{
+    field, FrameTicket, HeaderError, HeaderRepr, PixelFormat, HEADER_LEN, WINDOW_LEN, WRITING,
+};
+use vision::run_window::{self, ctrl, status, Header as RunHeader, LUT_OFFSET};
+use vision::runs::encode_codes;
 use vision::{process_frame, FrameGeometry, PipelineConfig, PipelineError};
 
 /// File name of car `id`'s RAM file inside a world's run directory.
@@ -76,11 +87,64 @@ impl From<HeaderError> for FeedError {
     }
 }
 
+/// Offset of the vision unit's run window in a QEMU car's RAM file (guest address
+/// `0x8113_0000`, right after the frame-grabber window).
+pub const RUN_WINDOW_OFFSET: u64 = FRAME_WINDOW_OFFSET + WINDOW_LEN as u64;
+
+/// Run buffer capacity of the host's run window (the SoC's: 4096 words).
+pub const RUN_CAPACITY: u32 = 4096;
+
+/// Writes an empty run window (nothing published, the unit stopped) into a QEMU car's RAM file,
+/// before its firmware starts: the firmware then finds a vision unit there.
+pub fn init_run_window(ram: &mut SharedRam) -> io::Result<()> {
+    let mut b = [0u8; run_window::HEADER_LEN + 8];
+    RunHeader::new(RUN_CAPACITY).emit(&mut b);
+    ram.write_at(RUN_WINDOW_OFFSET, &b)
+}
+
+/// What the vision unit does with a frame, done by the host for a QEMU car: if the RAM file
+/// holds a run window and the firmware has enabled it, the frame's RGB332 codes are classified
+/// with the class table the firmware loaded and their runs published into the buffer that is
+/// not ready, through the run window's writer protocol, and the status's frame bit is set.
+/// Unlike the SoC's unit (which waits for the end of a frame after it is enabled and takes the
+/// frame's stream time), every frame is published at once. `Ok(false)`: no run window.
+pub fn host_runs(ram: &mut SharedRam, codes: &[u8], width: u16) -> io::Result<bool> {
+    let mut head = [0u8; run_window::HEADER_LEN + 8];
+    ram.read_at(RUN_WINDOW_OFFSET, &mut head)?;
+    let Ok(mut header) = RunHeader::parse(&head) else {
+        return Ok(false);
+    };
+    let c = u32::from_le_bytes([head[64], head[65], head[66], head[67]]);
+    if c & ctrl::ENABLE == 0 {
+        return Ok(true);
+    }
+    let mut lut = [0u8; 256];
+    ram.read_at(RUN_WINDOW_OFFSET + LUT_OFFSET as u64, &mut lut)?;
+    let mut words = vec![0u32; header.capacity as usize];
+    let s = encode_codes(codes, width, &lut, &mut words);
+    run_window::publish(
+        &mut header,
+        &words[..s.words],
+        u32::from(s.dropped),
+        (s.width, s.height),
+        |off, b| ram.write_at(RUN_WINDOW_OFFSET + off as u64, b),
+    )?;
+    let st = status::FRAME | status::ACTIVE;
+    ram.write_at(
+        RUN_WINDOW_OFFSET + run_window::field::STATUS.start as u64,
+        &st.to_le_bytes(),
+    )?;
+    Ok(true)
+}
+
 /// The writer side of the window protocol, over any [`WindowWriter`]: a QEMU car's RAM file
-/// or a soft-core car's frame-grabber window in the SoC model.
+/// or a soft-core car's frame-grabber window in the SoC model; with the vision unit on, each
+/// frame also goes to the car's unit.
 #[derive(Debug, Clone)]
 pub struct WindowPublisher {
     header: HeaderRepr,
+    unit: bool,
+    codes: Vec<u8>,
 }
 
 fn sink_err(e: FrameWriteError) -> FeedError {
@@ -100,7 +164,17 @@ impl WindowPublisher {
         let mut bytes = [0u8; HEADER_LEN];
         header.emit(&mut bytes)?;
         sink.write_window(0, &bytes).map_err(sink_err)?;
-        Ok(WindowPublisher { header })
+        Ok(WindowPublisher {
+            header,
+            unit: false,
+            codes: Vec::new(),
+        })
+    }
+
+    /// From now on every published frame also goes to the car's vision unit (or not).
+    pub fn with_vision_unit(mut self, on: bool) -> Self {
+        self.unit = on;
+        self
     }
 
     /// The header as last written.
@@ -151,15 +225,41 @@ impl WindowPublisher {
         h.ready = index as u32;
         h.sequence = next;
         self.header = h;
+        if self.unit {
+            let codes: &[u8] = match h.format {
+                PixelFormat::Rgb332 => pixels,
+                PixelFormat::Rgb565 => {
+                    self.codes.clear();
+                    self.codes.extend(
+                        pixels
+                            .chunks_exact(2)
+                            .map(|p| rgb565_to_rgb332(u16::from_le_bytes([p[0], p[1]]))),
+                    );
+                    &self.codes
+                }
+            };
+            sink.camera_stream(codes, h.width, h.height)
+                .map_err(sink_err)?;
+        }
         Ok(next)
     }
 }
 
-/// A QEMU car's RAM file as a window: offsets are relative to [`FRAME_WINDOW_OFFSET`].
+/// A QEMU car's RAM file as a window: offsets are relative to [`FRAME_WINDOW_OFFSET`]; its
+/// vision unit is the host ([`host_runs`]), present when the file has a run window.
 impl WindowWriter for SharedRam {
     fn write_window(&mut self, offset: usize, bytes: &[u8]) -> Result<(), FrameWriteError> {
         self.write_at(FRAME_WINDOW_OFFSET + offset as u64, bytes)
             .map_err(|e| FrameWriteError(e.to_string()))
+    }
+
+    fn camera_stream(
+        &mut self,
+        codes: &[u8],
+        width: u16,
+        _height: u16,
+    ) -> Result<bool, FrameWriteError> {
+        host_runs(self, codes, width).map_err(|e| FrameWriteError(e.to_string()))
     }
 }
 
@@ -353,6 +453,9 @@ pub struct FeedConfig {
     pub camera: CameraConfig,
     /// Seed of the cameras' noise (car `id` adds `id`).
     pub seed: u64,
+    /// Every car has a vision unit that turns the frames into runs (default); false: the cars
+    /// are boards without one.
+    pub vision_unit: bool,
 }
 
 impl Default for FeedConfig {
@@ -361,6 +464,7 @@ impl Default for FeedConfig {
             fps: DEFAULT_FPS,
             camera: CameraConfig::default(),
             seed: 1,
+            vision_unit: true,
         }
     }
 }

@@ -13,9 +13,15 @@
 //! - `formation_processor_load`: the 16-car formation of `virtual_time_speed` (two wedges of
 //!   8), every car's processor profiled: each car's load and awake cycles per control step
 //!   over 10 s of the maneuver, and the share of soft-float arithmetic in them.
+//! - `vision_unit_load`: a car seeing two others (all standing still) on the soft core's
+//!   model, with its camera at 30 and 10 fps, with the SoC's vision unit and without (the
+//!   firmware's own pixel pipeline), against the same car without a camera: the awake cycles
+//!   its vision costs per frame, the frames per second that allows at 14.7456 MHz, and the
+//!   processor's share spent on vision at 30 fps.
 //!
 //! Lines starting with `figures:` are what `cargo xtask bench` reads.
 
+use arena::camera_feed::FeedConfig;
 use arena::radio_sim::{run_state_experiment, StateExperiment};
 use arena::world::{CarSpec, EngineKind, Tap, TapConfig, World, WorldConfig};
 use lbc_emu::Pose;
@@ -344,4 +350,114 @@ fn formation_processor_load() {
         100.0 * mean_load
     );
     println!("figures: mode=profile cars={N} load={mean_load:.4} awake_per_step={mean_step}");
+}
+
+/// What the viewer of [`vision_scene`] did over the measuring window.
+struct VisionRun {
+    /// Awake cycles per second.
+    awake_per_s: f64,
+    /// Frames per second its firmware processed.
+    frames_per_s: f64,
+}
+
+/// Three cars standing still, car 2 seeing cars 1 and 3 ahead (`camera_unit.rs`'s scene), the
+/// camera at `fps` (none: no camera) with or without the vision unit; car 2 measured over
+/// `window` after bring-up.
+fn vision_scene(camera: Option<(f64, bool)>, window: Duration) -> VisionRun {
+    const VIEWER: u8 = 2;
+    let up = std::f64::consts::FRAC_PI_2;
+    let pose = |x: f64, y: f64, heading_rad: f64| Pose {
+        x_mm: x * 2.5,
+        y_mm: y * 2.5,
+        heading_rad,
+    };
+    let elf = EngineKind::Iss.default_firmware().expect("firmware ELF");
+    let mut cfg = WorldConfig::new(
+        elf,
+        vec![
+            CarSpec::new(1, pose(300.0, 330.0, up)),
+            CarSpec::new(VIEWER, pose(300.0, 110.0, up)),
+            CarSpec::new(3, pose(390.0, 290.0, 0.4)),
+        ],
+    );
+    cfg.camera = camera.map(|(fps, vision_unit)| FeedConfig {
+        fps,
+        vision_unit,
+        ..FeedConfig::default()
+    });
+    let mut w = World::start(&cfg).expect("world starts");
+    assert_eq!(bring_up(&mut w, Duration::from_secs(60)), 3, "every car up");
+    let frames = |w: &mut World| match w.request(
+        VIEWER,
+        &Request::Camera { blob: 0 },
+        Duration::from_secs(5),
+    ) {
+        Ok(Reply::Camera(r)) => r.frames,
+        other => panic!("{other:?}"),
+    };
+    let k = w.ids().iter().position(|&i| i == VIEWER).unwrap();
+    // settle into the camera's rhythm, then measure
+    w.run_for(Duration::from_secs(1));
+    let (l0, f0, t0) = (w.core_load(k).unwrap(), frames(&mut w), w.now());
+    w.run_for(window);
+    let (l1, f1, t1) = (w.core_load(k).unwrap(), frames(&mut w), w.now());
+    let dt = (t1 - t0).as_secs_f64();
+    VisionRun {
+        awake_per_s: (l1.awake_cycles - l0.awake_cycles) as f64 / dt,
+        frames_per_s: f64::from(f1.wrapping_sub(f0)) / dt,
+    }
+}
+
+#[test]
+#[ignore = "benchmark: minutes; run explicitly"]
+fn vision_unit_load() {
+    const WINDOW: Duration = Duration::from_secs(4);
+    let clock = soc_model::CLOCK_HZ as f64;
+    let base = vision_scene(None, WINDOW);
+    println!(
+        "no camera: {:.0} awake cycles per second ({:.1} % of the processor)\n",
+        base.awake_per_s,
+        100.0 * base.awake_per_s / clock
+    );
+    println!("| vision | camera fps | frames processed per s | awake cycles per frame for vision | frames/s at 14.7456 MHz | processor on vision |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    let mut per_frame = [0.0f64; 2];
+    let mut share_30 = [0.0f64; 2];
+    let mut fps_30 = [0.0f64; 2];
+    for (i, unit) in [true, false].into_iter().enumerate() {
+        for fps in [30.0, 10.0] {
+            let r = vision_scene(Some((fps, unit)), WINDOW);
+            let vision = (r.awake_per_s - base.awake_per_s).max(0.0);
+            let cycles = vision / r.frames_per_s.max(1e-9);
+            let share = vision / clock;
+            println!(
+                "| {} | {fps:.0} | {:.1} | {cycles:.0} | {:.0} | {:.1} % |",
+                if unit {
+                    "vision unit"
+                } else {
+                    "firmware pipeline"
+                },
+                r.frames_per_s,
+                clock / cycles,
+                100.0 * share
+            );
+            if fps == 30.0 {
+                share_30[i] = share;
+                fps_30[i] = r.frames_per_s;
+            } else {
+                // at 10 fps both paths keep up with every frame: the clean cost per frame
+                per_frame[i] = cycles;
+            }
+        }
+    }
+    println!(
+        "figures: mode=vision unit_cycles={:.0} sw_cycles={:.0} unit_fps30={:.2} sw_fps30={:.2} unit_share30={:.4} sw_share30={:.4} base_share={:.4}",
+        per_frame[0],
+        per_frame[1],
+        fps_30[0],
+        fps_30[1],
+        share_30[0],
+        share_30[1],
+        base.awake_per_s / clock
+    );
 }

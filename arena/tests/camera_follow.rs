@@ -1,10 +1,13 @@
 //! End to end with the camera, on the soft core's model in virtual time: the arena renders each
-//! car's view into its frame grabber at 15 fps of world time; car 1 drives up the arena and to
-//! the side by a go-to group maneuver, and car 2 follows it by the camera alone (`CameraFollow`: marker class of car 1, 200 units = 500 mm). The
-//! follower must see the leader in its camera report, move with it, and keep within the band
-//! documented in `docs/camera.md` (reference points 300..900 mm apart while the leader drives,
-//! 400..750 mm once both have stopped). A run is a function of its inputs, so the machine's
-//! load cannot change the outcome. (`camera_qemu.rs` checks the same window on QEMU.)
+//! car's view into its frame grabber at 15 fps of world time with the firmware's own pixel
+//! pipeline (a board without the vision unit), and at 30 fps, the tracker's rate, streamed
+//! into the SoC's vision unit; car 1 drives up the arena and to the side by
+//! a go-to group maneuver, and car 2 follows it by the camera alone (`CameraFollow`: marker
+//! class of car 1, 200 units = 500 mm). The follower must see the leader in its camera report,
+//! move with it, and keep within the band documented in `docs/camera.md` (reference points
+//! 300..900 mm apart while the leader drives, 400..750 mm once both have stopped); at 30 fps its
+//! firmware must build blobs from every frame's runs. A run is a function of its inputs, so the
+//! machine's load cannot change the outcome. (`camera_qemu.rs` checks the same on QEMU.)
 
 use arena::camera_feed::FeedConfig;
 use arena::world::{CarSpec, EngineKind, World, WorldConfig};
@@ -38,7 +41,7 @@ fn wait_ready(world: &mut World, id: u8, deadline: Duration) {
     }
 }
 
-fn two_cars(engine: EngineKind) -> World {
+fn two_cars(engine: EngineKind, feed: FeedConfig) -> World {
     let elf = engine.default_firmware().expect("firmware ELF");
     let mut cfg = WorldConfig::new(
         elf,
@@ -48,7 +51,7 @@ fn two_cars(engine: EngineKind) -> World {
         ],
     );
     cfg.engine = engine;
-    cfg.camera = Some(FeedConfig::default());
+    cfg.camera = Some(feed);
     World::start(&cfg).expect("world starts")
 }
 
@@ -74,9 +77,45 @@ fn distance_mm(world: &World) -> f64 {
     (a.x_mm - b.x_mm).hypot(a.y_mm - b.y_mm)
 }
 
+/// The follower's camera report.
+fn camera_report(world: &mut World) -> ubc_app::program::console::CameraReport {
+    match world.request(FOLLOWER, &Request::Camera { blob: 0 }, REQUEST_TIMEOUT) {
+        Ok(Reply::Camera(r)) => r,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// At 15 fps on a board without the vision unit: the firmware runs the pixel pipeline itself.
 #[test]
 fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
-    let mut world = two_cars(EngineKind::Iss);
+    let frames_per_s = follow(FeedConfig {
+        vision_unit: false,
+        ..FeedConfig::default()
+    });
+    assert!(
+        (14.5..=15.5).contains(&frames_per_s),
+        "the firmware processed {frames_per_s:.1} frames per second"
+    );
+}
+
+/// At the tracker's 30 Hz, on the soft core's clock: the vision unit does the pixels, so the
+/// firmware keeps up with every frame.
+#[test]
+fn camera_follower_at_30_fps_on_the_vision_unit() {
+    let frames_per_s = follow(FeedConfig {
+        fps: 30.0,
+        ..FeedConfig::default()
+    });
+    assert!(
+        (29.0..=30.5).contains(&frames_per_s),
+        "the firmware processed {frames_per_s:.1} frames per second"
+    );
+}
+
+/// Runs the follow scenario with `feed`; returns the frames per second the follower's firmware
+/// processed while the leader drove.
+fn follow(feed: FeedConfig) -> f64 {
+    let mut world = two_cars(EngineKind::Iss, feed);
     let class = marker_class_for_car(LEADER);
     // The follower's camera sees the leader's marker straight ahead, about 510 mm away.
     let report = first_report(&mut world);
@@ -103,6 +142,8 @@ fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
 
     // Drive: sample the distance; the leader needs about 7 s for its 960 mm.
     let t0 = world.now();
+    let frames0 = camera_report(&mut world).frames;
+    let mut rate = None;
     let mut worst = (f64::MAX, 0.0f64);
     let mut leader_stopped_at = None;
     while world.now() - t0 < Duration::from_secs(30) {
@@ -113,6 +154,11 @@ fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
             worst = (worst.0.min(d), worst.1.max(d));
         }
         let t = world.truth();
+        if rate.is_none() && elapsed >= Duration::from_secs(5) {
+            let r = camera_report(&mut world);
+            let dt = (world.now() - t0).as_secs_f64();
+            rate = Some(f64::from(r.frames.wrapping_sub(frames0)) / dt);
+        }
         if elapsed.as_millis() % 1000 < 100 {
             eprintln!(
                 "t={:.1} s leader ({:.0}, {:.0}) {:.0} mm/s, follower ({:.0}, {:.0}) {:.0} mm/s, distance {d:.0} mm",
@@ -140,10 +186,7 @@ fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
     );
     let end = world.truth();
     let moved = (end[1].pose.y_mm - start_follower.y_mm).abs();
-    let report = match world.request(FOLLOWER, &Request::Camera { blob: 0 }, REQUEST_TIMEOUT) {
-        Ok(Reply::Camera(r)) => r,
-        other => panic!("{other:?}"),
-    };
+    let report = camera_report(&mut world);
     let final_d = distance_mm(&world);
     let stats = world.camera_stats().unwrap();
     eprintln!(
@@ -171,5 +214,10 @@ fn camera_follower_keeps_its_distance_behind_a_driving_leader() {
     assert_eq!(report.follow_state, 1, "{report:?}");
     assert!((400..700).contains(&report.leader_range_mm), "{report:?}");
     let load = world.core_load(1).expect("cycle counts");
-    eprintln!("follower processor load {:.1} %", 100.0 * load.load());
+    let rate = rate.expect("measured while driving");
+    eprintln!(
+        "follower processor load {:.1} %, {rate:.1} frames per second processed",
+        100.0 * load.load()
+    );
+    rate
 }

@@ -1,13 +1,16 @@
 //! The camera on QEMU: the arena renders each car's view into the frame-grabber window in the
 //! car's RAM file (a shared file QEMU maps); `almc camera snapshot` finds and reads that file,
-//! and the firmware's camera report matches what the host sees in it.
+//! and the firmware's camera report matches what the host sees in it. The host also plays the
+//! vision unit QEMU's board lacks: the firmware finds the run window in its RAM, loads the class
+//! table and enables it, and builds its blobs from the runs the host publishes there. Without
+//! the unit (`vision_unit = false`) there is no run window and the firmware uses the pixels.
 
 use arena::camera_feed::FeedConfig;
 use arena::world::{CarSpec, EngineKind, World, WorldConfig};
 use lbc_emu::Pose;
 use std::time::Duration;
 use ubc_app::program::console::{flags, Reply, Request};
-use vision::colour::marker_class_for_car;
+use vision::colour::{marker_class_for_car, MARKER_CLASSES};
 
 const LEADER: u8 = 1;
 const FOLLOWER: u8 = 2;
@@ -34,7 +37,7 @@ fn wait_ready(world: &mut World, id: u8, deadline: Duration) {
     }
 }
 
-fn two_cars(engine: EngineKind) -> World {
+fn two_cars(engine: EngineKind, vision_unit: bool) -> World {
     let elf = engine.default_firmware().expect("firmware ELF");
     let mut cfg = WorldConfig::new(
         elf,
@@ -44,7 +47,10 @@ fn two_cars(engine: EngineKind) -> World {
         ],
     );
     cfg.engine = engine;
-    cfg.camera = Some(FeedConfig::default());
+    cfg.camera = Some(FeedConfig {
+        vision_unit,
+        ..FeedConfig::default()
+    });
     World::start(&cfg).expect("world starts")
 }
 
@@ -69,7 +75,7 @@ fn qemu_window_is_what_the_snapshot_tool_reads() {
     if qemu_harness::skip_qemu_tests("qemu_window_is_what_the_snapshot_tool_reads") {
         return;
     }
-    let mut world = two_cars(EngineKind::Qemu);
+    let mut world = two_cars(EngineKind::Qemu, true);
     let ram = world
         .run_dir()
         .join(arena::camera_feed::ram_file_name(FOLLOWER));
@@ -86,6 +92,54 @@ fn qemu_window_is_what_the_snapshot_tool_reads() {
     assert!(frame.ticket.sequence >= 1);
     let host = frame.detect().unwrap();
     assert_eq!(host.blobs().first().map(|b| b.class), Some(class));
+    // the firmware took the vision unit's path: it loaded the table and enabled the unit, and
+    // the host has been publishing runs; the newest runs give the host's blobs of that frame
+    let file = qemu_harness::SharedRam::open_read_only(&ram).unwrap();
+    let mut win = vec![0u8; vision::run_window::WINDOW_LEN];
+    file.read_at(arena::camera_feed::RUN_WINDOW_OFFSET, &mut win)
+        .unwrap();
+    let ctrl = u32::from_le_bytes(win[64..68].try_into().unwrap());
+    assert_eq!(ctrl & vision::run_window::ctrl::ENABLE, 1, "{ctrl:#x}");
+    assert_eq!(&win[0x100..0x200], &MARKER_CLASSES.table()[..]);
+    let h = vision::run_window::Header::parse(&win).unwrap();
+    let t = h.ticket().expect("runs published");
+    assert!(
+        report.sequence <= t.sequence && t.sequence >= 1,
+        "{report:?} {t:?}"
+    );
+    let words: Vec<u32> = win[t.range()]
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    let mut det = vision::blobs::BlobDetector::new();
+    let from_runs = vision::runs::blobs_from_runs(
+        &words,
+        t.width,
+        t.height,
+        t.dropped,
+        &vision::PipelineConfig::default(),
+        &mut det,
+    )
+    .unwrap();
+    assert_eq!(from_runs.blobs().first().map(|b| b.class), Some(class));
+    drop(world);
+
+    // Without the unit the RAM file has no run window, and the firmware finds the leader in
+    // the pixels itself.
+    let mut world = two_cars(EngineKind::Qemu, false);
+    let report = first_report(&mut world);
+    assert_eq!(report.blob.map(|(_, b)| b.class), Some(class), "{report:?}");
+    let ram = world
+        .run_dir()
+        .join(arena::camera_feed::ram_file_name(FOLLOWER));
+    let file = qemu_harness::SharedRam::open_read_only(&ram).unwrap();
+    let mut head = [0u8; 72];
+    file.read_at(arena::camera_feed::RUN_WINDOW_OFFSET, &mut head)
+        .unwrap();
+    assert!(
+        head.iter().all(|&b| b == 0),
+        "a run window without the unit"
+    );
     drop(world);
     let me = std::process::id().to_string();
     let left = std::process::Command::new("pgrep")

@@ -1,11 +1,13 @@
 //! Rendered views through the on-board vision: a car at a known pose relative to the viewer shows up
 //! as a marker blob at the expected bearing and range, in both pixel formats and through a
-//! frame-grabber window.
+//! frame-grabber window. Every view is also detected the vision unit's way (its runs, then blobs
+//! from the runs), which must give exactly the software pipeline's detections.
 
 use arena::camera::{write_png, CameraConfig, CarPose, SyntheticCamera};
 use vision::blobs::{BlobDetector, Detections};
 use vision::colour::{marker_class_for_car, MARKER_CLASSES};
 use vision::frame::{FrameWindow, PixelFormat, WINDOW_LEN};
+use vision::runs::{blobs_from_runs, encode_frame, MAX_CAPACITY};
 use vision::{process_frame, PipelineConfig};
 
 const BEARING_TOLERANCE_MRAD: i32 = 15;
@@ -13,14 +15,18 @@ const RANGE_TOLERANCE: f32 = 0.08;
 
 fn detect(cam: &SyntheticCamera, frame: &[u8]) -> Detections {
     let mut det = BlobDetector::new();
-    process_frame(
-        frame,
-        &cam.geometry(),
-        &MARKER_CLASSES,
-        &PipelineConfig::default(),
-        &mut det,
-    )
-    .expect("frame has the camera's geometry")
+    let g = cam.geometry();
+    let cfg = PipelineConfig::default();
+    let want = process_frame(frame, &g, &MARKER_CLASSES, &cfg, &mut det)
+        .expect("frame has the camera's geometry");
+    // the vision unit's path
+    let mut words = vec![0u32; MAX_CAPACITY];
+    let s = encode_frame(frame, &g, &MARKER_CLASSES, &mut words).expect("encodes");
+    assert_eq!((s.width, s.height, s.dropped), (g.width, g.height, 0));
+    let got = blobs_from_runs(&words[..s.words], s.width, s.height, 0, &cfg, &mut det)
+        .expect("the encoder's runs parse");
+    assert_eq!(got, want, "runs then blobs differ from the pipeline");
+    want
 }
 
 /// A car `ahead` mm in front of the viewer's camera and `left` mm to its left, at yaw `yaw`.

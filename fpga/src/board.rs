@@ -26,6 +26,9 @@ pub enum Design {
     Soc,
     /// The core alone, its buses ending in flip-flops (`core_top.v`).
     Core,
+    /// The vision unit alone, its bus and camera port driven from flip-flops (`vision_top.v`),
+    /// with the run buffers of the board's SoC.
+    Vision,
 }
 
 impl Board {
@@ -79,11 +82,22 @@ impl Board {
         2048
     }
 
+    /// Word-address bits of each of the vision unit's run buffers (`VIS_CAP_AW` of the board's
+    /// top): what block RAM is left after the program RAM, the frame window and the register
+    /// file.
+    pub fn vision_cap_aw(self) -> u32 {
+        match self {
+            Board::Up5k => 9,
+            Board::Hx8k => 8,
+        }
+    }
+
     fn top(self, design: Design) -> &'static str {
         match (self, design) {
             (Board::Up5k, Design::Soc) => "top_icebreaker",
             (Board::Hx8k, Design::Soc) => "top_hx8k",
             (_, Design::Core) => "core_top",
+            (_, Design::Vision) => "vision_top",
         }
     }
 
@@ -91,8 +105,9 @@ impl Board {
         match (self, design) {
             (Board::Up5k, Design::Soc) => "icebreaker.pcf",
             (Board::Hx8k, Design::Soc) => "hx8k.pcf",
-            (Board::Up5k, Design::Core) => "core_up5k.pcf",
-            (Board::Hx8k, Design::Core) => "core_hx8k.pcf",
+            // the unit alone has the core alone's pins
+            (Board::Up5k, Design::Core | Design::Vision) => "core_up5k.pcf",
+            (Board::Hx8k, Design::Core | Design::Vision) => "core_hx8k.pcf",
         }
     }
 }
@@ -124,6 +139,7 @@ impl Design {
         match self {
             Design::Soc => "soc",
             Design::Core => "core",
+            Design::Vision => "vision",
         }
     }
 }
@@ -140,6 +156,9 @@ pub struct Target {
     /// The SoC clock is [`SOC_CLOCK_MHZ`] / 2^`clock_div_log2` (0 in every figure; more for
     /// bring-up at a clock the design meets). The core alone ignores it.
     pub clock_div_log2: u32,
+    /// The SoC with its vision unit (the SoC only; off by default: the UP5K SoC with it does
+    /// not fit, docs/fpga.md).
+    pub vision_unit: bool,
 }
 
 impl Target {
@@ -150,6 +169,7 @@ impl Target {
             design: Design::Soc,
             seed: 1,
             clock_div_log2: 0,
+            vision_unit: false,
         }
     }
 
@@ -161,11 +181,19 @@ impl Target {
         }
     }
 
+    /// The vision unit alone with seed 1.
+    pub fn vision(board: Board) -> Self {
+        Target {
+            design: Design::Vision,
+            ..Target::soc(board)
+        }
+    }
+
     /// The clock the design is timed at, in MHz.
     pub fn clock_mhz(&self) -> f64 {
         match self.design {
             Design::Soc => SOC_CLOCK_MHZ / f64::from(1u32 << self.clock_div_log2.min(16)),
-            Design::Core => SOC_CLOCK_MHZ,
+            Design::Core | Design::Vision => SOC_CLOCK_MHZ,
         }
     }
 
@@ -175,10 +203,16 @@ impl Target {
             (Design::Soc, n) if n > 0 => format!("-div{}", 1u32 << n.min(16)),
             _ => String::new(),
         };
+        let vision = if self.design == Design::Soc && self.vision_unit {
+            "-vision"
+        } else {
+            ""
+        };
         format!(
-            "{}-{}{}-seed{}",
+            "{}-{}{}{}-seed{}",
             self.board.name(),
             self.design.name(),
+            vision,
             div,
             self.seed
         )
@@ -200,6 +234,7 @@ impl Target {
         let fpga = |f: &str| sources.fpga.join(f);
         match self.design {
             Design::Core => vec![rtl("rv_core.v"), fpga("core_top.v")],
+            Design::Vision => vec![rtl("vision_unit.v"), fpga("vision_top.v")],
             Design::Soc => {
                 let ram = match self.board {
                     Board::Up5k => fpga("soc_ram_spram.v"),
@@ -212,6 +247,7 @@ impl Target {
                     rtl("uart16550.v"),
                     rtl("clint.v"),
                     rtl("plic.v"),
+                    rtl("vision_unit.v"),
                 ];
                 for f in [
                     "fpga_soc.v",
@@ -275,6 +311,11 @@ mod tests {
         assert!((t.clock_mhz() - 3.703125).abs() < 1e-9);
         assert_eq!(t.dir_name(), "up5k-soc-div4-seed1");
         assert_eq!(Target::core(Board::Hx8k).dir_name(), "hx8k-core-seed1");
+        let v = Target {
+            vision_unit: true,
+            ..Target::soc(Board::Up5k)
+        };
+        assert_eq!(v.dir_name(), "up5k-soc-vision-seed1");
         // 0.45 % above the nominal clock
         let err = SOC_CLOCK_MHZ / SOC_CLOCK_NOMINAL_MHZ - 1.0;
         assert!((err - 0.004527).abs() < 1e-5, "{err}");
@@ -284,7 +325,7 @@ mod tests {
     fn every_source_file_exists() {
         let s = Sources::in_workspace();
         for b in Board::ALL {
-            for t in [Target::soc(b), Target::core(b)] {
+            for t in [Target::soc(b), Target::core(b), Target::vision(b)] {
                 for f in t.verilog(&s).iter().chain([t.pcf(&s)].iter()) {
                     assert!(f.is_file(), "{} is missing", f.display());
                 }

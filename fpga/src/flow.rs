@@ -132,6 +132,18 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
             target.clock_div_log2,
             target.top()
         ));
+        script.push_str(&format!(
+            "chparam -set VISION {} {}\n",
+            u8::from(target.vision_unit),
+            target.top()
+        ));
+    }
+    if target.design == Design::Vision {
+        script.push_str(&format!(
+            "chparam -set CAP_AW {} {}\n",
+            target.board.vision_cap_aw(),
+            target.top()
+        ));
     }
     script.push_str(&format!(
         "synth_ice40 {}-abc9 -top {} -json \"{}\"\n",
@@ -212,7 +224,7 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
     let timing = Timing::from_report(&report);
     let clock = match target.design {
         Design::Soc => timing.find_clock(&["soc_clk", "clk_pll"]),
-        Design::Core => timing.find_clock(&["clk"]),
+        Design::Core | Design::Vision => timing.find_clock(&["clk"]),
     }
     .unwrap_or("")
     .to_owned();

@@ -81,7 +81,13 @@ fn run_board(board: Board) {
             files.push(model);
         }
     }
-    for f in ["rv_core.v", "uart16550.v", "clint.v", "plic.v"] {
+    for f in [
+        "rv_core.v",
+        "uart16550.v",
+        "clint.v",
+        "plic.v",
+        "vision_unit.v",
+    ] {
         files.push(s.rtl.join(f));
     }
     for f in [

@@ -128,6 +128,7 @@ enum Target {
     Clint(u32),
     Plic(u32),
     Uart(usize, bool),
+    Vision(u32),
     None,
 }
 
@@ -146,6 +147,8 @@ fn target(addr: u32) -> Target {
         Target::Uart(0, addr & 4 != 0)
     } else if addr >> 3 == map::UART1 >> 3 {
         Target::Uart(1, addr & 4 != 0)
+    } else if addr >> 16 == map::VISION >> 16 {
+        Target::Vision(addr & 0xfffc)
     } else {
         Target::None
     }
@@ -189,7 +192,7 @@ impl Soc {
             }
         }
         self.dev_t = t;
-        let src = u16::from(self.uart[0].irq()) << 10 | u16::from(self.uart[1].irq()) << 11;
+        let src = self.irq_sources(t);
         let mei = self.plic.eip(src) || self.tb;
         self.lines =
             u8::from(self.clint.msip) | u8::from(self.clint.mtip(t)) << 1 | u8::from(mei) << 2;
@@ -200,7 +203,22 @@ impl Soc {
         if let Some((e, _)) = self.tb_next {
             next = next.min(e);
         }
+        if let Some(v) = self.vision.as_ref() {
+            next = next.min(v.next_change());
+        }
         self.next_dev = next;
+    }
+
+    /// The PLIC's source levels in cycle `t` (bit n = source n), with the devices brought to
+    /// `t`.
+    fn irq_sources(&mut self, t: u64) -> u16 {
+        let vision = self.vision.as_mut().is_some_and(|v| {
+            v.advance_to(t);
+            v.irq()
+        });
+        u16::from(self.uart[0].irq()) << 10
+            | u16::from(self.uart[1].irq()) << 11
+            | u16::from(vision) << crate::irq::VISION
     }
 
     /// Interrupt lines that are high or that something other than the core could still raise
@@ -212,8 +230,14 @@ impl Soc {
             p |= line::MSI;
         }
         let uart_can = |i: usize, src: u8| self.plic.can_signal(src) && self.uart[i].irq_possible();
+        let vision_can = self.plic.can_signal(crate::irq::VISION as u8)
+            && self.vision.as_ref().is_some_and(|v| v.irq_possible());
         if self.mie & line::MEI != 0
-            && (self.tb || self.tb_next.is_some() || uart_can(0, 10) || uart_can(1, 11))
+            && (self.tb
+                || self.tb_next.is_some()
+                || uart_can(0, 10)
+                || uart_can(1, 11)
+                || vision_can)
         {
             p |= line::MEI;
         }
@@ -239,7 +263,7 @@ impl Soc {
             Target::Clint(off) => self.clint.read(c, off),
             Target::Plic(off) => {
                 self.sync(c);
-                let src = u16::from(self.uart[0].irq()) << 10 | u16::from(self.uart[1].irq()) << 11;
+                let src = self.irq_sources(c);
                 let v = self.plic.read(off, re, src);
                 self.next_dev = c + 1;
                 v
@@ -259,6 +283,7 @@ impl Soc {
                 }
                 v
             }
+            Target::Vision(off) => self.vision.as_mut().map_or(0, |v| v.read(c, off)),
         }
     }
 
@@ -322,6 +347,13 @@ impl Soc {
                 };
                 self.uart_access(u, acc);
                 self.next_dev = c + 1;
+            }
+            Target::Vision(off) => {
+                if let Some(v) = self.vision.as_mut() {
+                    v.write(c, off, wstrb, wdata);
+                    // the interrupt line may change from the next cycle
+                    self.next_dev = self.next_dev.min(c + 1);
+                }
             }
             Target::None => {}
         }

@@ -1,8 +1,8 @@
 //! Cycle-accurate instruction-set model of the softcore SoC (`verilator-tb/rtl/`): the RV32IMAC +
 //! Zicsr core with its exact cycle costs (two-cycle CSR writes to register-file CSRs, AMOs and
 //! trap entry, the 34-cycle divider, the counter-carry cycles), 1 MiB of RAM, the frame-grabber
-//! window, two 16550 UARTs, the CLINT, the PLIC and the simulation-control device, in one
-//! process, deterministic, without the RTL.
+//! window, the vision unit, two 16550 UARTs, the CLINT, the PLIC and the simulation-control
+//! device, in one process, deterministic, without the RTL.
 //!
 //! The model agrees with the RTL cycle for cycle: every instruction retires in the same cycle,
 //! every UART byte and console byte appears in the same cycle, and the statistics (cycles,
@@ -29,11 +29,14 @@ pub mod isa;
 pub mod rvc;
 #[cfg(test)]
 mod tests;
+mod vision_unit;
 
 pub use elf::LoadError;
 pub use hart::Retire;
+pub use vision_unit::{CameraTiming, CAPACITY as VISION_CAPACITY, VGA_H_BLANK};
 
 use dev::{Clint, Plic, Uart};
+use vision_unit::VisionUnit;
 
 /// Core clock in Hz (115200 baud is divisor 8: 128 clocks per bit).
 pub const CLOCK_HZ: u64 = 14_745_600;
@@ -62,6 +65,19 @@ pub mod map {
     pub const RAM: u32 = super::RAM_BASE;
     /// Frame-grabber window (`super::FRAME_WINDOW_LEN` bytes, data port only).
     pub const FRAME_WINDOW: u32 = 0x8100_0000;
+    /// Vision unit: registers, class table and run buffers (`vision::run_window` layout) in a
+    /// 64 KiB region (PLIC source 12).
+    pub const VISION: u32 = 0x8113_0000;
+}
+
+/// PLIC sources of the SoC's devices.
+pub mod irq {
+    /// UART0 (LBC link).
+    pub const UART0: u32 = 10;
+    /// UART1 (radio).
+    pub const UART1: u32 = 11;
+    /// The vision unit's end of frame.
+    pub const VISION: u32 = 12;
 }
 
 /// The SoC's two UARTs.
@@ -170,6 +186,50 @@ impl core::fmt::Display for FrameError {
 }
 
 impl std::error::Error for FrameError {}
+
+/// Why a camera frame is refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraError {
+    /// This SoC has no vision unit ([`Soc::set_vision_unit`]).
+    NoVisionUnit,
+    /// Width or height is 0 or above 4096, or the pixels are not `width * height` codes.
+    BadFrame {
+        /// Width asked for.
+        width: u16,
+        /// Height asked for.
+        height: u16,
+        /// Codes given.
+        len: usize,
+    },
+    /// `h_blank` is 0.
+    BadTiming,
+}
+
+impl core::fmt::Display for CameraError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NoVisionUnit => write!(f, "this SoC has no vision unit"),
+            Self::BadFrame { width, height, len } => write!(
+                f,
+                "a {width}x{height} camera frame needs 1..=4096 pixels each way and as many \
+                 codes, got {len}"
+            ),
+            Self::BadTiming => write!(f, "a camera row needs at least one blank cycle"),
+        }
+    }
+}
+
+impl std::error::Error for CameraError {}
+
+/// When a camera frame goes through the vision unit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CameraFrame {
+    /// Cycle of its first pixel.
+    pub first: u64,
+    /// Cycle of its end event; the frame is published at the edge ending `eof + 2` (seen from
+    /// `eof + 3`) when the unit processes it.
+    pub eof: u64,
+}
 
 /// Why words cannot be loaded into RAM.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -324,6 +384,7 @@ pub struct Soc {
     pub(crate) frame: Vec<u32>,
 
     // ---- devices
+    pub(crate) vision: Option<Box<VisionUnit>>,
     pub(crate) clint: Clint,
     pub(crate) plic: Plic,
     pub(crate) uart: [Uart; 2],
@@ -404,6 +465,7 @@ impl Soc {
             ops: vec![0; RAM_HALVES],
             code: None,
             frame: vec![0; FRAME_WORDS],
+            vision: Some(Box::new(VisionUnit::new())),
             clint: Clint::new(),
             plic: Plic::default(),
             uart: [Uart::new(), Uart::new()],
@@ -588,6 +650,64 @@ impl Soc {
             }
         }
         Ok(())
+    }
+
+    /// Gives the SoC a fresh vision unit, or takes it away (its region then reads as zero, as
+    /// on a board without the unit).
+    pub fn set_vision_unit(&mut self, present: bool) {
+        self.vision = present.then(|| Box::new(VisionUnit::new()));
+        self.next_dev = self.next_dev.min(self.now);
+    }
+
+    /// Whether the SoC has a vision unit.
+    pub fn has_vision_unit(&self) -> bool {
+        self.vision.is_some()
+    }
+
+    /// Streams a frame of RGB332 codes (`width` per row) into the vision unit's camera port,
+    /// exactly as `verilator-tb`'s `Soc::camera_frame_at`: the stream starts at the first cycle
+    /// at or after `max(at, cycle())` in which the previous frame's stream has ended, one pixel
+    /// a cycle, `timing.h_blank` cycles between rows (the row's end in the first), the frame's
+    /// end right after the last row's.
+    pub fn camera_frame_at(
+        &mut self,
+        at: u64,
+        codes: &[u8],
+        width: u16,
+        height: u16,
+        timing: CameraTiming,
+    ) -> Result<CameraFrame, CameraError> {
+        let Some(unit) = self.vision.as_mut() else {
+            return Err(CameraError::NoVisionUnit);
+        };
+        let ok = (1..=4096).contains(&width)
+            && (1..=4096).contains(&height)
+            && codes.len() == usize::from(width) * usize::from(height);
+        if !ok {
+            return Err(CameraError::BadFrame {
+                width,
+                height,
+                len: codes.len(),
+            });
+        }
+        if timing.h_blank == 0 {
+            return Err(CameraError::BadTiming);
+        }
+        let (first, eof) = unit.queue(at.max(self.now), codes, width, height, timing);
+        // the interrupt line may change when the frame is published
+        self.next_dev = self.next_dev.min(eof + 3);
+        Ok(CameraFrame { first, eof })
+    }
+
+    /// [`Soc::camera_frame_at`] from [`Soc::cycle`] on.
+    pub fn camera_frame(
+        &mut self,
+        codes: &[u8],
+        width: u16,
+        height: u16,
+        timing: CameraTiming,
+    ) -> Result<CameraFrame, CameraError> {
+        self.camera_frame_at(self.now, codes, width, height, timing)
     }
 
     /// Statistics up to [`Soc::cycle`].

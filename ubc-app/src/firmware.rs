@@ -1,10 +1,15 @@
 //! Board layer of the program (feature `firmware`): brings the board up, feeds the two UARTs'
 //! interrupt-driven rings and the CLINT time to [`crate::program::Program`] (with a program
 //! loop, [`crate::program::user::UserProgram`], when the binary has one), runs the vision
-//! pipeline on each new camera frame (in place in the frame grabber's window) and hands the
-//! program its detections, logs its events through defmt and sleeps in WFI until the
-//! program's next deadline, a whole frame on either line, or the next look at the frame
-//! grabber.
+//! pipeline on each new camera frame and hands the program its detections, logs its events
+//! through defmt and sleeps in WFI until the program's next deadline, a whole frame on either
+//! line, the vision unit's next frame, or the next look at the frame grabber.
+//!
+//! Vision: where the board has a vision unit (the SoC's pixel pipeline, or on QEMU the host
+//! writing the same run window), the firmware loads its class table, starts it, and builds
+//! the blobs from each frame's runs (`vision::runs::blobs_from_runs`); otherwise it runs the
+//! whole pipeline over the frame grabber's pixels (`vision::process_frame`). Both give the same
+//! detections for the same frame.
 //!
 //! The processor's time is the car's budget: the UARTs' interrupts move bytes into rings
 //! without waking the program, which runs when a frame from the LBC is complete, when a radio
@@ -28,7 +33,7 @@ compile_error!("select a board with a cargo feature, e.g. `--features qemu_virt`
 
 use crate::program::user::UserProgram;
 use crate::program::{self, BytePort, Config, LogEvent, LogSink, Program};
-use board::{Board, Camera, Clock, Uart};
+use board::{Board, Camera, Clock, Uart, Vision};
 use core::sync::atomic::{AtomicBool, Ordering};
 use ubc_hal::cpu;
 use vision::blobs::BlobDetector;
@@ -38,7 +43,7 @@ use vision::{process_frame, PipelineConfig};
 /// Period of the liveness log line, in microseconds.
 const STATS_PERIOD_US: u64 = 10_000_000;
 /// How often the frame grabber is looked at, in microseconds (the camera publishes at 15 to
-/// 30 frames per second and raises no interrupt).
+/// 30 frames per second; only the vision unit of the SoC raises an interrupt).
 const CAMERA_POLL_US: u64 = 10_000;
 
 /// Bytes waiting in a receive ring that wake the program even without a whole frame (noise
@@ -241,6 +246,13 @@ fn run<U: UserProgram>(board: Board, user: &mut U) -> ! {
     }
     let batch = u32::try_from(clock.ticks_from_micros(RADIO_BATCH_US)).unwrap_or(u32::MAX);
     let mut camera = board.camera;
+    let mut vision = board.vision;
+    if let Some(v) = vision.as_mut() {
+        v.load_classes(&MARKER_CLASSES);
+        v.start(true);
+        defmt::info!("vision unit: runs from the pixel pipeline");
+    }
+    let runs_ready = |v: &Option<Vision>| v.as_ref().is_some_and(|v| v.has_new_runs());
     let mut detector = BlobDetector::new();
     let mut program = Program::new(Config::default());
     let start = clock.micros();
@@ -262,9 +274,13 @@ fn run<U: UserProgram>(board: Board, user: &mut U) -> ! {
             now = clock.micros();
             program_due = program.poll_at(now);
         }
-        if now >= next_camera {
+        if now >= next_camera || runs_ready(&vision) {
             next_camera = now + CAMERA_POLL_US;
-            if grab_frame(&mut camera, &mut detector, &mut program, &clock) {
+            let grabbed = match vision.as_mut() {
+                Some(v) => grab_runs(v, &mut detector, &mut program, &clock),
+                None => grab_frame(&mut camera, &mut detector, &mut program, &clock),
+            };
+            if grabbed {
                 now = clock.micros();
                 program_due = program.poll_at(now);
             }
@@ -285,14 +301,16 @@ fn run<U: UserProgram>(board: Board, user: &mut U) -> ! {
                 let radio_at = radio_wait(radio.as_mut(), lo, batch)
                     .map(|w| now_ticks.max(clock.ticks()) + u64::from(w));
                 let until = radio_at.map_or(wake, |r| r.min(wake));
-                if lbc_input(&lbc) || clock.ticks() >= until {
+                if lbc_input(&lbc) || clock.ticks() >= until || runs_ready(&vision) {
                     break;
                 }
                 if until != armed {
                     clock.set_wakeup(until);
                     armed = until;
                 }
-                cpu::idle_unless(|| lbc_input(&lbc) || clock.ticks() >= until);
+                cpu::idle_unless(|| {
+                    lbc_input(&lbc) || clock.ticks() >= until || runs_ready(&vision)
+                });
             }
         }
     }
@@ -326,6 +344,42 @@ fn grab_frame(
         }
         Ok(Some((_, Err(e)))) => {
             defmt::warn!("camera frame rejected: {}", e);
+            false
+        }
+        Ok(None) | Err(_) => false,
+    }
+}
+
+/// Builds the blobs from the vision unit's newest run buffer, if a new frame is published, and
+/// gives the program its detections; whether it did. Runs the unit overwrote meanwhile are
+/// dropped (counted by the reader).
+fn grab_runs(
+    unit: &mut Vision,
+    detector: &mut BlobDetector,
+    program: &mut Program,
+    clock: &Clock,
+) -> bool {
+    if !unit.has_new_runs() {
+        return false;
+    }
+    let grabbed = unit.with_latest(|r| {
+        let t = r.ticket;
+        vision::runs::blobs_from_runs(
+            r.words,
+            t.width,
+            t.height,
+            t.dropped,
+            &PipelineConfig::default(),
+            detector,
+        )
+    });
+    match grabbed {
+        Ok(Some((ticket, Ok(detections)))) => {
+            program.on_camera_frame(clock.micros(), ticket.sequence, &detections);
+            true
+        }
+        Ok(Some((_, Err(e)))) => {
+            defmt::warn!("vision runs rejected: {}", e);
             false
         }
         Ok(None) | Err(_) => false,

@@ -29,6 +29,7 @@ pub mod plic;
 pub mod ring;
 pub mod serial;
 pub mod uart;
+pub mod vision_unit;
 
 pub use embedded_hal_nb;
 pub use embedded_io;

@@ -27,6 +27,7 @@ enum Op : uint8_t {
     OP_RELEASE = 5,
     OP_RUN = 6,
     OP_HELLO = 7,
+    OP_CAMERA = 8,
 };
 
 enum RunFlag : uint8_t {
@@ -41,7 +42,7 @@ enum EventKind : uint8_t {
     EV_EXIT = 3,
 };
 
-constexpr uint32_t PROTOCOL_VERSION = 1;
+constexpr uint32_t PROTOCOL_VERSION = 2;
 constexpr uint32_t RAM_WORDS = 1u << 18;
 constexpr uint32_t FMEM_BYTES = 0x130000;
 
@@ -81,6 +82,14 @@ struct Rx {
     uint8_t byte;
 };
 
+// A frame on the camera's pixel stream: pixel (x, y) in cycle first + y * line + x, the row's
+// end in cycle first + y * line + width, the frame's end right after the last row's.
+struct CamFrame {
+    uint64_t first;
+    uint32_t width, height, line;
+    std::vector<uint8_t> codes;
+};
+
 struct Sim {
     VerilatedContext ctx;
     Vsoc* top = nullptr;
@@ -88,6 +97,7 @@ struct Sim {
     uint64_t retired = 0;
     uint64_t sleep_cycles = 0;
     std::deque<Rx> rx[2];
+    std::deque<CamFrame> cam;
 
     void tick() {
         top->clk = 1;
@@ -122,6 +132,48 @@ void frame(Sim& s) {
         uint32_t shift = (at & 3) * 8;
         uint32_t& w = mem[at >> 2];
         w = (w & ~(0xffu << shift)) | (uint32_t(b) << shift);
+    }
+}
+
+void camera(Sim& s) {
+    CamFrame f;
+    f.first = get<uint64_t>();
+    f.width = get<uint16_t>();
+    f.height = get<uint16_t>();
+    uint32_t h_blank = get<uint32_t>();
+    f.line = f.width + h_blank;
+    f.codes.resize(size_t(f.width) * f.height);
+    if (!f.codes.empty() && !read_exact(f.codes.data(), f.codes.size())) std::exit(0);
+    if (f.width == 0 || f.height == 0 || h_blank == 0) die("empty camera frame");
+    s.cam.push_back(std::move(f));
+}
+
+// The camera port's inputs for cycle `c` (frames queue in order and never overlap).
+void drive_camera(Sim& s, uint64_t c) {
+    Vsoc* t = s.top;
+    t->cam_valid = 0;
+    t->cam_eol = 0;
+    t->cam_eof = 0;
+    while (!s.cam.empty()) {
+        const CamFrame& f = s.cam.front();
+        if (c < f.first) return;
+        uint64_t rel = c - f.first;
+        uint64_t eof = uint64_t(f.height - 1) * f.line + f.width + 1;
+        if (rel == eof) {
+            t->cam_eof = 1;
+            return;
+        }
+        if (rel < eof) {
+            uint64_t x = rel % f.line;
+            if (x < f.width) {
+                t->cam_valid = 1;
+                t->cam_data = f.codes[(rel / f.line) * f.width + x];
+            } else if (x == f.width) {
+                t->cam_eol = 1;
+            }
+            return;
+        }
+        s.cam.pop_front();
     }
 }
 
@@ -160,6 +212,7 @@ void run(Sim& s, Out& out) {
             s.rx[1].pop_front();
             next_rx[1] = s.rx[1].empty() ? UINT64_MAX : s.rx[1].front().cycle;
         }
+        drive_camera(s, s.cycle);
         s.sleep_cycles += t->core_sleeping;  // state of the cycle that this edge ends
         s.tick();
         n++;
@@ -271,6 +324,9 @@ int main(int argc, char** argv) {
                 break;
             case OP_RUN:
                 run(s, out);
+                break;
+            case OP_CAMERA:
+                camera(s);
                 break;
             default:
                 die("unknown request");

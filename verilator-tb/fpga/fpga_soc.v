@@ -1,7 +1,8 @@
 // The SoC as built for an FPGA board: `soc` (with the RAM implementation the build reads:
 // rtl/soc_ram.v for block RAM, soc_ram_spram.v on UltraPlus), a boot loader that copies the
 // program from the SPI flash into RAM, serial receivers in front of both UARTs, a parallel
-// camera on the frame-grabber port, reset sequencing and status LEDs. `clk` is the SoC clock
+// camera on the frame-grabber port and the vision unit's pixel stream, reset sequencing and
+// status LEDs. `clk` is the SoC clock
 // (logic on its rising edge, memories on its falling edge); reset is held until the PLL has
 // locked, 255 more clocks have passed and the loader is done.
 `default_nettype none
@@ -9,6 +10,8 @@
 module fpga_soc #(
     parameter integer RAM_AW = 10,            // RAM words: 2^RAM_AW
     parameter integer FMEM_AW = 9,            // frame window words: 2^FMEM_AW
+    parameter integer VISION = 1,             // 1: the SoC has the vision unit
+    parameter integer VIS_CAP_AW = 9,         // vision unit: 2^VIS_CAP_AW words per run buffer
     parameter [23:0]  FLASH_OFFSET = 24'h10_0000
 ) (
     input  wire       clk,
@@ -68,9 +71,12 @@ module fpga_soc #(
     wire [FMEM_AW-1:0] fg_addr;
     wire [31:0]        fg_wdata;
     wire               frame;
+    wire               px_valid, px_eol, px_eof;
+    wire [7:0]         px_data;
     frame_capture #(.AW(FMEM_AW)) camera (
         .clk(clk), .rst(soc_rst), .pclk(cam_pclk), .href(cam_href), .vsync(cam_vsync),
-        .d(cam_d), .we(fg_we), .addr(fg_addr), .wdata(fg_wdata), .frame(frame)
+        .d(cam_d), .we(fg_we), .addr(fg_addr), .wdata(fg_wdata), .frame(frame),
+        .px_valid(px_valid), .px_data(px_data), .px_eol(px_eol), .px_eof(px_eof)
     );
 
     // ---------------------------------------------------------------- the SoC
@@ -78,11 +84,13 @@ module fpga_soc #(
     wire [31:0] exit_value;
     /* verilator lint_off PINCONNECTEMPTY */
     soc #(
-        .RAM_AW(RAM_AW), .FMEM_WORDS(1 << FMEM_AW), .FMEM_AW(FMEM_AW), .FG_PORT(1)
+        .RAM_AW(RAM_AW), .FMEM_WORDS(1 << FMEM_AW), .FMEM_AW(FMEM_AW), .FG_PORT(1),
+        .VISION(VISION), .VIS_CAP_AW(VIS_CAP_AW)
     ) soc0 (
         .clk(clk), .rst(soc_rst),
         .bd_we(bd_we), .bd_addr({{(18-RAM_AW){1'b0}}, bd_addr}), .bd_wdata(bd_wdata),
         .fg_we(fg_we), .fg_addr(fg_addr), .fg_wdata(fg_wdata),
+        .cam_valid(px_valid), .cam_data(px_data), .cam_eol(px_eol), .cam_eof(px_eof),
         .tb_meip(1'b0),
         .uart0_rx_valid(rx0_valid), .uart0_rx_data(rx0_data),
         .uart0_tx_valid(tx0_valid), .uart0_tx_data(),

@@ -8,7 +8,8 @@
 module top_icebreaker #(
     // 0: the SoC clock is the PLL's 14.8125 MHz; N > 0: divided by 2^N, for bring-up where
     // timing is not met at the full rate (see docs/fpga.md)
-    parameter integer CLK_DIV_LOG2 = 0
+    parameter integer CLK_DIV_LOG2 = 0,
+    parameter integer VISION = 1             // the vision unit in the SoC (the flow sets it)
 ) (
     input  wire       clk_12m,      // pin 35
     input  wire       rx,           // FTDI channel B: UART0 (LBC link)
@@ -58,7 +59,7 @@ module top_icebreaker #(
     endgenerate
 
     wire [7:0] leds;
-    fpga_soc #(.RAM_AW(14), .FMEM_AW(9)) soc (
+    fpga_soc #(.RAM_AW(14), .FMEM_AW(9), .VISION(VISION)) soc (
         .clk(~soc_clk), .pll_locked(locked),
         .uart0_rxd(rx), .uart0_txd(tx), .uart1_rxd(uart1_rx), .uart1_txd(uart1_tx),
         .flash_sck(flash_sck), .flash_csn(flash_ssb), .flash_mosi(flash_io0),

@@ -7,13 +7,17 @@
 //   0x1000_1000  UART1 (radio)
 //   0x8000_0000  RAM, 1 MiB in two halfword banks; execution starts at its base
 //   0x8100_0000  frame-grabber window, 0x13_0000 bytes (written by the harness, read by the core)
+//   0x8113_0000  vision unit (registers, class table, run buffers; PLIC source 12), fed by the
+//                camera's pixel stream (cam_*)
 `default_nettype none
 
 module soc #(
     parameter integer RAM_AW = 18,              // RAM: 2^RAM_AW words (1 MiB)
     parameter integer FMEM_WORDS = 32'h4_C000,  // frame window: vision::frame::WINDOW_LEN / 4
     parameter integer FMEM_AW = 19,             // address bits of the window's words
-    parameter integer FG_PORT = 0               // 1: the window is written by the fg_* port
+    parameter integer FG_PORT = 0,              // 1: the window is written by the fg_* port
+    parameter integer VISION = 1,               // 1: the vision unit is there
+    parameter integer VIS_CAP_AW = 12           // its run buffers: 2^VIS_CAP_AW words each
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -28,6 +32,13 @@ module soc #(
     input  wire [3:0]  fg_we,
     input  wire [FMEM_AW-1:0] fg_addr,
     input  wire [31:0] fg_wdata,
+
+    // The camera's pixel stream for the vision unit: one event a cycle, an RGB332 pixel
+    // (`cam_valid`), the end of a line or the end of a frame.
+    input  wire        cam_valid,
+    input  wire [7:0]  cam_data,
+    input  wire        cam_eol,
+    input  wire        cam_eof,
 
     // Extra machine external interrupt line for test benches.
     input  wire        tb_meip,
@@ -120,6 +131,7 @@ module soc #(
     wire sel_plic  = dmem_addr[31:22] == 10'b0000_1100_00;
     wire sel_uart0 = dmem_addr[31:3] == 29'h0200_0000;
     wire sel_uart1 = dmem_addr[31:3] == 29'h0200_0200;
+    wire sel_vis   = VISION != 0 && dmem_addr[31:16] == 16'h8113;
 
     wire [31:0] ram_rdata;
     soc_ram #(.AW(RAM_AW)) ram (
@@ -178,6 +190,8 @@ module soc #(
     // ------------------------------------------------------------------ peripherals
     wire [31:0] clint_rdata, plic_rdata, uart0_rdata, uart1_rdata;
     wire        uart0_irq, uart1_irq;
+    wire [31:0] vis_rdata;
+    wire        vis_irq;
 
     clint clint0 (
         .clk(clk), .rst(rst), .sel(sel_clint), .offset(dmem_addr[15:0]),
@@ -187,8 +201,21 @@ module soc #(
     plic plic0 (
         .clk(clk), .rst(rst), .sel(sel_plic), .offset(dmem_addr[21:0]), .re(dmem_re),
         .wstrb(dmem_wstrb), .wdata(dmem_wdata), .rdata(plic_rdata),
-        .src({4'd0, uart1_irq, uart0_irq, 9'd0}), .eip(meip)
+        .src({3'd0, vis_irq, uart1_irq, uart0_irq, 9'd0}), .eip(meip)
     );
+
+    generate
+        if (VISION != 0) begin : vision
+            vision_unit #(.CAP_AW(VIS_CAP_AW)) unit (
+                .clk(clk), .rst(rst), .sel(sel_vis), .offset(dmem_addr[15:0]),
+                .wstrb(dmem_wstrb), .wdata(dmem_wdata), .rdata(vis_rdata), .irq(vis_irq),
+                .px_valid(cam_valid), .px_data(cam_data), .px_eol(cam_eol), .px_eof(cam_eof)
+            );
+        end else begin : no_vision
+            assign vis_rdata = 32'd0;
+            assign vis_irq = 1'b0;
+        end
+    endgenerate
 
     uart16550 uart0 (
         .clk(clk), .rst(rst), .sel(sel_uart0), .addr_hi(dmem_addr[2]), .re(dmem_re),
@@ -213,6 +240,7 @@ module soc #(
         else if (sel_plic) dmem_rdata = plic_rdata;
         else if (sel_uart0) dmem_rdata = uart0_rdata;
         else if (sel_uart1) dmem_rdata = uart1_rdata;
+        else if (sel_vis) dmem_rdata = vis_rdata;
         else dmem_rdata = 32'd0;
     end
 endmodule

@@ -14,6 +14,7 @@
 //! | 5 | RELEASE | none: one more clock in reset, then run; the cycle count restarts at 0 | none |
 //! | 6 | RUN | max cycles u64, flags u8 (1 = RVFI records, 2 = stop after the first event) | batch |
 //! | 7 | HELLO | none | protocol version u32 |
+//! | 8 | CAMERA | first cycle u64, width u16, height u16, h_blank u32, width x height RGB332 codes: a frame on the vision unit's pixel stream (pixel (x, y) in cycle first + y (width + h_blank) + x, each row's end right after its last pixel, the frame's end right after the last row's; frames queue in order and must not overlap) | none |
 //!
 //! A batch is: cycles run u64, instructions retired u64, sleep cycles u64 (both since start),
 //! event count u32, record count u32, the events (cycle u64, kind u8 [0 UART0 TX, 1 UART1 TX,
@@ -30,7 +31,7 @@ use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 /// Path of the simulator executable, set by the build script.
 pub(crate) const SIM_EXE: &str = env!("VTB_SIM_EXE");
 
-const PROTOCOL_VERSION: u32 = 1;
+const PROTOCOL_VERSION: u32 = 2;
 
 mod op {
     pub const LOAD: u8 = 1;
@@ -40,6 +41,7 @@ mod op {
     pub const RELEASE: u8 = 5;
     pub const RUN: u8 = 6;
     pub const HELLO: u8 = 7;
+    pub const CAMERA: u8 = 8;
 }
 
 const FLAG_RVFI: u8 = 1;
@@ -215,6 +217,26 @@ impl Model {
         msg[2..10].copy_from_slice(&cycle.to_le_bytes());
         msg[10] = byte;
         self.send(&msg)
+    }
+
+    /// Queues a frame on the camera's pixel stream from cycle `first` (checked by the caller:
+    /// 1..=4096 pixels each way, `codes` whole, `h_blank` at least 1).
+    pub(crate) fn camera(
+        &mut self,
+        first: u64,
+        width: u16,
+        height: u16,
+        h_blank: u32,
+        codes: &[u8],
+    ) -> Result<(), SimError> {
+        let mut head = [0u8; 17];
+        head[0] = op::CAMERA;
+        head[1..9].copy_from_slice(&first.to_le_bytes());
+        head[9..11].copy_from_slice(&width.to_le_bytes());
+        head[11..13].copy_from_slice(&height.to_le_bytes());
+        head[13..17].copy_from_slice(&h_blank.to_le_bytes());
+        self.send(&head)?;
+        self.send(codes)
     }
 
     /// Drives the test bench's external interrupt line.

@@ -5,6 +5,7 @@
 use crate::golden::Retire;
 pub use crate::model::SimError;
 use crate::model::{Model, RawEvent, Record};
+pub use soc_model::{CameraError, CameraFrame, CameraTiming, VGA_H_BLANK};
 
 /// Core clock of the SoC in Hz (128 clocks per bit at 115200 baud; divisor 8).
 pub const CLOCK_HZ: u32 = 14_745_600;
@@ -32,12 +33,16 @@ pub mod map {
     pub const RAM: u32 = super::RAM_BASE;
     /// Frame-grabber window (`super::FRAME_WINDOW_LEN` bytes; layout in `vision::frame`).
     pub const FRAME_WINDOW: u32 = 0x8100_0000;
+    /// Vision unit (`vision::run_window` layout), fed by the camera port.
+    pub const VISION: u32 = 0x8113_0000;
 }
 
 /// PLIC source numbers.
 pub mod irq {
     pub const UART0: u32 = 10;
     pub const UART1: u32 = 11;
+    /// The vision unit's end of frame.
+    pub const VISION: u32 = 12;
 }
 
 /// The SoC's two UARTs.
@@ -201,6 +206,8 @@ pub struct Soc {
     rx_free: [u64; 2],
     ext_irq: bool,
     rx_log: Vec<RxSend>,
+    /// First cycle the camera's stream is free again.
+    cam_free: u64,
 }
 
 impl Default for Soc {
@@ -237,6 +244,7 @@ impl Soc {
             rx_free: [0; 2],
             ext_irq: false,
             rx_log: Vec::new(),
+            cam_free: 0,
         })
     }
 
@@ -297,6 +305,41 @@ impl Soc {
         }
         sim(self.model.write_frame(offset as u32, bytes));
         Ok(())
+    }
+
+    /// Streams a frame of RGB332 codes (`width` per row) into the vision unit's camera port:
+    /// one pixel a cycle from the first cycle at or after `max(at, cycle())` in which the
+    /// previous frame's stream has ended, `timing.h_blank` cycles between rows (the row's end
+    /// in the first of them), the frame's end right after the last row's. The same call on
+    /// `soc_model::Soc` gives the same cycles.
+    pub fn camera_frame_at(
+        &mut self,
+        at: u64,
+        codes: &[u8],
+        width: u16,
+        height: u16,
+        timing: CameraTiming,
+    ) -> Result<CameraFrame, CameraError> {
+        let ok = (1..=4096).contains(&width)
+            && (1..=4096).contains(&height)
+            && codes.len() == usize::from(width) * usize::from(height);
+        if !ok {
+            return Err(CameraError::BadFrame {
+                width,
+                height,
+                len: codes.len(),
+            });
+        }
+        if timing.h_blank == 0 {
+            return Err(CameraError::BadTiming);
+        }
+        let first = at.max(self.cycle).max(self.cam_free);
+        let eof = first + timing.eof_offset(width, height);
+        self.cam_free = eof + 1;
+        sim(self
+            .model
+            .camera(first, width, height, timing.h_blank, codes));
+        Ok(CameraFrame { first, eof })
     }
 
     /// Releases reset: the core starts at [`RAM_BASE`]; cycle 0 is the first clock after.

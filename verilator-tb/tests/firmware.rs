@@ -1,8 +1,9 @@
 //! The `softcore` build of the firmware (path in `VTB_FIRMWARE`) on the SoC, co-simulated with
 //! the emulated LBC on UART0 and a radio-mac ground station on UART1: it boots, brings the LBC
 //! up, carries out a MOVE_XY the ground station sends as a console request, and keeps decoding
-//! the LBC's stream frames while the car drives, and runs its vision pipeline on a frame the
-//! harness writes into the frame-grabber window. Every retired instruction is checked against
+//! the LBC's stream frames while the car drives, and finds the marker in a frame the harness
+//! writes into the frame-grabber window and streams through the SoC's vision unit (the firmware
+//! takes the unit's runs where there is one). Every retired instruction is checked against
 //! the golden model (lockstep) on the way. Without `VTB_FIRMWARE` the tests say so and do
 //! nothing (the image is built by `cargo xtask fw --board softcore`).
 mod ground;
@@ -197,7 +198,7 @@ fn softcore_firmware_moves_the_car_on_a_console_request() {
 #[test]
 fn softcore_firmware_sees_a_marker_in_the_frame_window() {
     use ubc_app::program::console::CameraReport;
-    use verilator_tb::soc::FRAME_WINDOW_LEN;
+    use verilator_tb::soc::{CameraTiming, FRAME_WINDOW_LEN};
     use vision::colour::{Rgb, MARKER_PALETTE};
     use vision::frame::{FrameWindow, PixelFormat};
     let Some(mut rig) = Rig::boot() else { return };
@@ -217,10 +218,20 @@ fn softcore_firmware_sees_a_marker_in_the_frame_window() {
         };
     }
     window.publish(index, rig.cosim.now_us());
+    let range = window.header().buffer_range(index);
+    let bytes = window.into_inner();
     rig.cosim
         .soc
-        .write_frame_window(0, &window.into_inner())
+        .write_frame_window(0, &bytes)
         .expect("fits the window");
+    // The camera streams the same frame twice: the unit, enabled by the firmware at boot,
+    // starts at the end of the first and publishes the second as its frame 1.
+    for _ in 0..2 {
+        rig.cosim
+            .soc
+            .camera_frame_at(0, &bytes[range.clone()], 640, 480, CameraTiming::default())
+            .expect("a VGA frame");
+    }
     let mut report = None;
     rig.run_until(2_000, |r| {
         match r.request(&Request::Camera { blob: 0 }) {
@@ -258,7 +269,7 @@ const LONG_FIRMWARE_INSTRUCTIONS: u64 = 20_000_000;
 #[test]
 #[ignore = "long: run by cargo xtask bench --only lockstep"]
 fn firmware_in_lockstep_long() {
-    use verilator_tb::soc::FRAME_WINDOW_LEN;
+    use verilator_tb::soc::{CameraTiming, FRAME_WINDOW_LEN};
     use vision::colour::{Rgb, MARKER_PALETTE};
     use vision::frame::{FrameWindow, PixelFormat};
     let Some(mut rig) = Rig::boot() else {
@@ -272,6 +283,13 @@ fn firmware_in_lockstep_long() {
     let mut window = FrameWindow::init(vec![0u8; FRAME_WINDOW_LEN], 640, 480, PixelFormat::Rgb332)
         .expect("window layout");
     let mut frames = 0u32;
+    // The vision unit starts at the end of a frame after the firmware enables it: one frame
+    // to start it, then each frame is published as the unit's next.
+    let grey_frame = vec![grey; 640 * 480];
+    rig.cosim
+        .soc
+        .camera_frame_at(0, &grey_frame, 640, 480, CameraTiming::default())
+        .expect("a VGA frame");
     while rig.cosim.checked() < LONG_FIRMWARE_INSTRUCTIONS {
         let index = window.begin_write();
         let x0 = 20 + (frames as usize * 37) % 560;
@@ -280,13 +298,19 @@ fn firmware_in_lockstep_long() {
             let inside = (x0..x0 + 40).contains(&x) && (200..260).contains(&y);
             *px = if inside { blue } else { grey };
         }
-        let seq = window.publish(index, rig.cosim.now_us());
+        window.publish(index, rig.cosim.now_us());
+        let range = window.header().buffer_range(index);
         let bytes = window.into_inner();
         rig.cosim
             .soc
             .write_frame_window(0, &bytes)
             .expect("fits the window");
+        rig.cosim
+            .soc
+            .camera_frame_at(0, &bytes[range], 640, 480, CameraTiming::default())
+            .expect("a VGA frame");
         window = FrameWindow::new_checked(bytes).expect("a published window");
+        let seq = frames + 1;
         let mut done = false;
         rig.run_until(5_000, |r| {
             match r.request(&Request::Camera { blob: 0 }) {

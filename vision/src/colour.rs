@@ -197,6 +197,11 @@ impl ColourClasses {
         self.skip_unsaturated && !word_may_be_saturated(w)
     }
 
+    /// The class of every RGB332 code (what the vision unit's table is loaded with).
+    pub fn table(&self) -> &[u8; 256] {
+        &self.class
+    }
+
     /// Whether [`ColourClasses::word_is_background`] can ever answer `true` for this table.
     pub fn skips_background_words(&self) -> bool {
         self.skip_unsaturated

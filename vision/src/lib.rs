@@ -15,6 +15,8 @@ pub mod colour;
 pub mod follow;
 pub mod frame;
 pub mod pinhole;
+pub mod run_window;
+pub mod runs;
 
 use blobs::{BlobDetector, Detections, Run, MAX_RUNS_PER_ROW};
 use colour::{ColourClasses, BACKGROUND};

@@ -21,6 +21,9 @@
 //!   formation sweep `experiments/sweeps/formation-wedge-loss.toml`, from scratch.
 //! - `fpga`, `lockstep`: the soft core on the iCE40 boards, and 10^8 instructions checked
 //!   against the golden model (`bench_fpga`).
+//! - `vision-unit`: the SoC's vision unit against the firmware's own pixel pipeline (cycles
+//!   per frame, frames per second and processor share at 14.7456 MHz, on the soft core's
+//!   model), and the unit's LUT4 and Fmax (`bench_vision`).
 //!
 //! `--only NAME` runs one of them; `--out FILE` also writes the markdown to a file.
 
@@ -78,12 +81,15 @@ pub enum Bench {
     Sweep,
     /// The SoC and the core on the iCE40 boards: utilization and Fmax.
     Fpga,
+    /// The vision unit against the firmware's pixel pipeline: cycles per frame, frames per
+    /// second and processor share at 14.7456 MHz; the unit's LUT4 and Fmax.
+    VisionUnit,
     /// At least 10^8 instructions in lockstep with the golden model.
     Lockstep,
 }
 
 impl Bench {
-    const ALL: [Bench; 11] = [
+    const ALL: [Bench; 12] = [
         Bench::Size,
         Bench::FwDecode,
         Bench::HostDecode,
@@ -94,6 +100,7 @@ impl Bench {
         Bench::Softcore,
         Bench::Sweep,
         Bench::Fpga,
+        Bench::VisionUnit,
         Bench::Lockstep,
     ];
 
@@ -109,6 +116,7 @@ impl Bench {
             Bench::Softcore => "soft core",
             Bench::Sweep => "sweeps",
             Bench::Fpga => "the soft core on iCE40 FPGAs",
+            Bench::VisionUnit => "the vision unit",
             Bench::Lockstep => "lockstep with the golden model",
         }
     }
@@ -135,6 +143,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             Bench::Softcore => softcore(),
             Bench::Sweep => sweep(),
             Bench::Fpga => crate::bench_fpga::fpga(),
+            Bench::VisionUnit => crate::bench_vision::vision_unit(),
             Bench::Lockstep => crate::bench_fpga::lockstep(),
         };
         match section {

@@ -1,8 +1,8 @@
 //! Benchmarks of the soft core on FPGAs and of its lockstep checking:
 //!
-//! - `fpga`: the SoC and the core alone on both boards (nextpnr seeds 1 to 3): LUT4, FF,
-//!   carry, RAM, SPRAM, DSP, logic cells and Fmax against the SoC clock and the goals; the
-//!   UP5K SoC at the bring-up clock.
+//! - `fpga`: the SoC, the core alone and the vision unit alone on both boards (nextpnr seeds 1
+//!   to 3): LUT4, FF, carry, RAM, SPRAM, DSP, logic cells and Fmax against the SoC clock and
+//!   the goals; the UP5K SoC at the bring-up clock.
 //! - `lockstep`: at least 10^8 instructions checked against the golden model: seeded random
 //!   streams (compressed instructions included) run over and over, and the firmware with
 //!   frames for its vision pipeline.
@@ -18,6 +18,8 @@ use crate::bench::{field, figures, ignored_test_named, verdict};
 const FMAX_GOAL_HX8K: f64 = 60.0;
 const FMAX_GOAL_UP5K: f64 = 24.0;
 const CORE_LUT_GOAL: u64 = 2000;
+/// Goal of the vision unit: LUT4 (and it must run at the SoC clock).
+pub(crate) const VISION_LUT_GOAL: u64 = 800;
 /// Seeds of each placement.
 const SEEDS: [u64; 3] = [1, 2, 3];
 /// The bring-up clock divider of the UP5K row.
@@ -51,9 +53,14 @@ fn row(o: &Outcome) -> String {
         "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {fmax}{dsp} | {:.4} | {met} |",
         t.board.name(),
         match (t.design, t.clock_div_log2) {
+            (Design::Soc, 0) if t.vision_unit => "SoC with the vision unit".to_owned(),
             (Design::Soc, 0) => "SoC".to_owned(),
             (Design::Soc, n) => format!("SoC, clock / {}", 1u32 << n),
             (Design::Core, _) => "core".to_owned(),
+            (Design::Vision, _) => format!(
+                "vision unit ({} words a buffer)",
+                1u32 << t.board.vision_cap_aw()
+            ),
         },
         t.seed,
         o.cells.lut4,
@@ -86,9 +93,20 @@ pub fn fpga() -> Result<String> {
                 ..Target::core(board)
             });
         }
+        for seed in SEEDS {
+            targets.push(Target {
+                seed,
+                ..Target::vision(board)
+            });
+        }
     }
     targets.push(Target {
         clock_div_log2: BRING_UP_DIV_LOG2,
+        ..Target::soc(Board::Up5k)
+    });
+    // The UP5K SoC with its vision unit (the other rows' SoCs are without it).
+    targets.push(Target {
+        vision_unit: true,
         ..Target::soc(Board::Up5k)
     });
     let mut outcomes = Vec::new();
@@ -127,6 +145,7 @@ pub fn fpga() -> Result<String> {
                 o.target.board == board
                     && o.target.design == Design::Soc
                     && o.target.clock_div_log2 == 0
+                    && !o.target.vision_unit
             })
             .filter_map(Outcome::fmax_mhz)
             .fold(None, |m: Option<f64>, f| Some(m.map_or(f, |m| m.max(f))));
@@ -150,9 +169,29 @@ pub fn fpga() -> Result<String> {
             verdict(core.cells.lut4 <= CORE_LUT_GOAL)
         );
     }
+    for board in Board::ALL {
+        let units: Vec<&Outcome> = outcomes
+            .iter()
+            .filter(|o| o.target.design == Design::Vision && o.target.board == board)
+            .collect();
+        if let Some(first) = units.first() {
+            let fmax = units
+                .iter()
+                .filter_map(|o| o.fmax_mhz())
+                .fold(f64::NAN, f64::min);
+            let ok = first.cells.lut4 <= VISION_LUT_GOAL && units.iter().all(|o| o.timing_met());
+            let _ = writeln!(
+                md,
+                "| vision unit <= {VISION_LUT_GOAL} LUT4 at the SoC clock ({}) | {} LUT4, Fmax {fmax:.1} MHz (worst seed) | {} |",
+                board.name(),
+                first.cells.lut4,
+                verdict(ok)
+            );
+        }
+    }
     let _ = write!(
         md,
-        "\nReproduce: `cargo xtask bench --only fpga`; one build: `cargo xtask fpga --board up5k --seed 1` (`--core` for the core alone, `--clock-div 2` for the bring-up clock). Outputs, logs and reports in `target/fpga/`."
+        "\nReproduce: `cargo xtask bench --only fpga`; one build: `cargo xtask fpga --board up5k --seed 1` (`--core` for the core alone, `--vision` for the vision unit alone, `--clock-div 2` for the bring-up clock). Outputs, logs and reports in `target/fpga/`."
     );
     Ok(md)
 }

@@ -23,8 +23,14 @@ pub struct FpgaArgs {
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=3))]
     clock_div: u32,
     /// Build the core alone instead of the SoC (area and clock figures; no bitstream to use).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "vision")]
     core: bool,
+    /// Build the vision unit alone instead of the SoC (area and clock figures).
+    #[arg(long, conflicts_with = "vision_unit")]
+    vision: bool,
+    /// Build the SoC with its vision unit (the UP5K SoC does not fit with it).
+    #[arg(long, conflicts_with = "core")]
+    vision_unit: bool,
 }
 
 fn parse_board(s: &str) -> Result<Board, String> {
@@ -46,9 +52,16 @@ pub fn run(args: FpgaArgs) -> Result<()> {
     for board in boards {
         let target = Target {
             board,
-            design: if args.core { Design::Core } else { Design::Soc },
+            design: if args.core {
+                Design::Core
+            } else if args.vision {
+                Design::Vision
+            } else {
+                Design::Soc
+            },
             seed: args.seed,
             clock_div_log2: args.clock_div,
+            vision_unit: args.vision_unit,
         };
         stage(&format!("{} {}", board.title(), target.design.name()));
         let outcome = fpga::build(&target, &sources, &out)

@@ -7,6 +7,7 @@
 
 mod bench;
 mod bench_fpga;
+mod bench_vision;
 mod demo;
 mod fpga;
 mod fw;

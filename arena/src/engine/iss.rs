@@ -192,6 +192,25 @@ impl WindowWriter for IssCar {
             .write_frame_window(offset, bytes)
             .map_err(|e| FrameWriteError(format!("{e:?}")))
     }
+
+    fn camera_stream(
+        &mut self,
+        codes: &[u8],
+        width: u16,
+        height: u16,
+    ) -> Result<bool, FrameWriteError> {
+        if !self.soc.has_vision_unit() {
+            return Ok(false);
+        }
+        self.soc
+            .camera_frame(codes, width, height, soc_model::CameraTiming::default())
+            .map(|_| true)
+            .map_err(|e| FrameWriteError(e.to_string()))
+    }
+
+    fn set_vision_unit(&mut self, present: bool) {
+        self.soc.set_vision_unit(present);
+    }
 }
 
 /// The virtual-time engine.

@@ -123,10 +123,24 @@ impl fmt::Display for FrameWriteError {
 
 impl std::error::Error for FrameWriteError {}
 
-/// Writes into one car's frame-grabber window at offsets relative to the window's start.
+/// Writes into one car's frame-grabber window at offsets relative to the window's start, and
+/// feeds its vision unit.
 pub trait WindowWriter {
     /// Writes `bytes` at `offset` in the window.
     fn write_window(&mut self, offset: usize, bytes: &[u8]) -> Result<(), FrameWriteError>;
+    /// Streams a frame of RGB332 codes (`width` per row) into the car's vision unit: the SoC's
+    /// camera port, or on QEMU the host computing the runs into the run window as the unit
+    /// would. `Ok(false)`: the car has no vision unit.
+    fn camera_stream(
+        &mut self,
+        _codes: &[u8],
+        _width: u16,
+        _height: u16,
+    ) -> Result<bool, FrameWriteError> {
+        Ok(false)
+    }
+    /// Gives the car's SoC a vision unit or takes it away (before its firmware starts).
+    fn set_vision_unit(&mut self, _present: bool) {}
 }
 
 /// What runs the cars' firmware.

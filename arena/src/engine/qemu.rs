@@ -6,7 +6,7 @@
 //! QEMU processes die with the process that started them.
 
 use super::{CarEngine, CarIo, CoreLoad, Failure, FailureKind, Nanos, WindowWriter};
-use crate::camera_feed::ram_file_name;
+use crate::camera_feed::{init_run_window, ram_file_name};
 use qemu_harness::{Qemu, SharedRam, SharedRamSpec, SocketSpec, UartAttach};
 use std::collections::VecDeque;
 use std::fmt;
@@ -157,12 +157,14 @@ fn wait_for_path(path: &Path, timeout: Duration) -> bool {
 }
 
 impl QemuEngine {
-    /// Starts one QEMU per `(id, firmware)` with its sockets (and, with `camera`, its RAM
-    /// file) in `dir`; returns once every firmware printed its banner.
+    /// Starts one QEMU per `(id, firmware)` with its sockets (and, with a `camera`, its RAM
+    /// file; with `Some(true)` also the run window the host fills as the vision unit would,
+    /// written before the firmware starts so it finds it) in `dir`; returns once every firmware
+    /// printed its banner.
     pub fn start(
         dir: &Path,
         cars: &[(u8, PathBuf)],
-        camera: bool,
+        camera: Option<bool>,
         boot_timeout: Duration,
     ) -> Result<Self, QemuEngineError> {
         let mut engine = QemuEngine { cars: Vec::new() };
@@ -177,9 +179,13 @@ impl QemuEngine {
                 .radio(UartAttach::Listen(SocketSpec::Unix(radio_path.clone())))
                 .kill_with_parent(true);
             let mut ram = None;
-            if camera {
+            if let Some(unit) = camera {
                 let spec = SharedRamSpec::new(dir.join(ram_file_name(id)));
-                ram = Some(SharedRam::create(&spec.path, spec.len())?);
+                let mut file = SharedRam::create(&spec.path, spec.len())?;
+                if unit {
+                    init_run_window(&mut file)?;
+                }
+                ram = Some(file);
                 builder = builder.shared_ram(spec);
             }
             let qemu = builder

@@ -498,6 +498,7 @@ impl Experiment {
             phases,
             faults: raw.faults,
             camera_fps: raw.camera_fps,
+            vision_unit: raw.vision_unit.unwrap_or(true),
             engine: match raw.engine {
                 None | Some(EngineName::Iss) => EngineKind::Iss,
                 Some(EngineName::Qemu) => EngineKind::Qemu,

@@ -69,6 +69,10 @@ pub struct Experiment {
     /// Frames per second of every car's synthetic camera (written into its frame grabber);
     /// `None`: no camera feed.
     pub camera_fps: Option<f64>,
+    /// Whether each car's vision unit turns the camera's pixels into runs (`vision_unit`,
+    /// default true); false runs the cars as boards without one (the firmware then processes
+    /// the pixels).
+    pub vision_unit: bool,
     /// What runs the cars' firmware (`engine = "iss"`, the default, or `"qemu"`).
     pub engine: EngineKind,
     /// Threads stepping the cars on the virtual-time engine (the outputs do not depend on
@@ -566,6 +570,7 @@ impl Experiment {
         cfg.camera = self.camera_fps.map(|fps| FeedConfig {
             fps,
             seed: self.seed,
+            vision_unit: self.vision_unit,
             ..FeedConfig::default()
         });
         cfg

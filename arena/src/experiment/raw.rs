@@ -19,6 +19,8 @@ pub(super) struct RawExperiment {
     #[serde(default)]
     pub(super) faults: Faults,
     pub(super) camera_fps: Option<f64>,
+    /// Whether the cars' vision unit computes the runs (default true).
+    pub(super) vision_unit: Option<bool>,
     pub(super) engine: Option<EngineName>,
     pub(super) threads: Option<u64>,
     pub(super) on_car_failure: Option<FailurePolicy>,

@@ -109,6 +109,21 @@ fn camera_feed_from_the_file() {
         .unwrap();
     let feed = e.world_config(Path::new("/fw")).camera.unwrap();
     assert_eq!(feed.fps, 10.0);
+    assert!(
+        e.vision_unit && feed.vision_unit,
+        "the vision unit by default"
+    );
+    let off = Experiment::parse(&TWO.replace(
+        "duration_s = 30",
+        "duration_s = 30\ncamera_fps = 30\nvision_unit = false",
+    ))
+    .unwrap();
+    let feed = off.world_config(Path::new("/fw")).camera.unwrap();
+    assert_eq!((feed.fps, feed.vision_unit), (30.0, false));
+    assert!(Experiment::parse(
+        &TWO.replace("duration_s = 30", "duration_s = 30\nvision_unit = \"yes\"")
+    )
+    .is_err());
     for v in ["0", "-5", "61", "nan"] {
         let text = TWO.replace(
             "duration_s = 30",

@@ -198,8 +198,13 @@ impl World {
             EngineKind::Qemu => {
                 let cars: Vec<(u8, PathBuf)> = ids.iter().copied().zip(firmware).collect();
                 Box::new(
-                    QemuEngine::start(&dir.0, &cars, cfg.camera.is_some(), cfg.boot_timeout)
-                        .map_err(WorldError::Qemu)?,
+                    QemuEngine::start(
+                        &dir.0,
+                        &cars,
+                        cfg.camera.map(|c| c.vision_unit),
+                        cfg.boot_timeout,
+                    )
+                    .map_err(WorldError::Qemu)?,
                 )
             }
         };
@@ -259,7 +264,12 @@ impl World {
                 let publishers = (0..ids.len())
                     .map(|k| {
                         let mut p = None;
-                        engine.with_window(k, &mut |w| p = WindowPublisher::init(w, &g).ok());
+                        engine.with_window(k, &mut |w| {
+                            w.set_vision_unit(config.vision_unit);
+                            p = WindowPublisher::init(w, &g)
+                                .ok()
+                                .map(|p| p.with_vision_unit(config.vision_unit));
+                        });
                         p
                     })
                     .collect();

@@ -14,6 +14,7 @@ use crate::pci::{Ecam, IoAllocator, IoDevice, IoWindow, PciError};
 use crate::plic::Plic;
 use crate::serial::{FrameStamping, OpenError, Port, PortState};
 use crate::uart::{Config, Ns16550};
+use crate::vision_unit::VisionUnit;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 /// Board name, as used by `cargo xtask fw --board`.
@@ -42,6 +43,10 @@ pub mod map {
     /// Frame-grabber window (`vision::frame::WINDOW_LEN` bytes): RAM past the image's 16 MiB,
     /// which QEMU backs with a shared file the host writes (`-m 32M`, see qemu-harness).
     pub const FRAME_GRABBER: usize = 0x8100_0000;
+    /// The vision unit's run window (`vision::run_window::WINDOW_LEN` bytes): RAM the host
+    /// writes like the SoC's vision unit when it computes runs for the camera (qemu virt has no
+    /// such device; the firmware finds it by its ID, `docs/camera.md`).
+    pub const VISION: usize = 0x8113_0000;
 }
 
 /// PLIC interrupt sources.
@@ -76,6 +81,8 @@ pub type Uart = Port<Mmio>;
 pub type Clock = Clint<Mmio>;
 /// The camera's frame grabber on this board.
 pub type Camera = FrameGrabber<MmioWindow>;
+/// The vision unit's reader on this board (the host's run window in RAM).
+pub type Vision = VisionUnit<Mmio, MmioWindow>;
 
 static LBC_PORT: PortState<Mmio> = PortState::new();
 static RADIO_PORT: PortState<Mmio> = PortState::new();
@@ -134,6 +141,8 @@ pub struct Board {
     pub plic: Plic<Mmio>,
     /// Reader of the camera's frame-grabber window at [`map::FRAME_GRABBER`].
     pub camera: Camera,
+    /// The run window at [`map::VISION`], when the host writes one.
+    pub vision: Option<Vision>,
 }
 
 /// The CLINT. Reading time is harmless from anywhere (e.g. log timestamps).
@@ -222,8 +231,19 @@ impl Board {
             exit: exit_device(),
             plic,
             camera: camera(),
+            vision: vision_unit(),
         })
     }
+}
+
+/// The vision unit's run window, if the host writes one (it has no interrupt here: poll it).
+pub fn vision_unit() -> Option<Vision> {
+    let len = vision::run_window::WINDOW_LEN;
+    // SAFETY: RAM outside the image's region of the linker script, 64 KiB aligned, written
+    // only by the host (and the firmware's control words and class table through this
+    // driver); no Rust object lives there.
+    let (regs, memory) = unsafe { (Mmio::new(map::VISION), MmioWindow::new(map::VISION, len)) };
+    VisionUnit::probe(regs, memory)
 }
 
 fn open_radio() -> Result<(Uart, RadioInfo), RadioError> {

@@ -11,6 +11,7 @@ use crate::mmio::Mmio;
 use crate::plic::Plic;
 use crate::serial::{FrameStamping, OpenError, Port, PortState};
 use crate::uart::{Config, Ns16550};
+use crate::vision_unit::VisionUnit;
 use core::sync::atomic::{AtomicBool, Ordering};
 
 /// Board name, as used by `cargo xtask fw --board`.
@@ -39,6 +40,8 @@ pub mod map {
     /// Frame-grabber window (`vision::frame::WINDOW_LEN` bytes): the SoC's frame memory,
     /// written by the test bench.
     pub const FRAME_GRABBER: usize = 0x8100_0000;
+    /// The vision unit (`vision::run_window` layout, 64 KiB region).
+    pub const VISION: usize = 0x8113_0000;
 }
 
 /// PLIC interrupt sources.
@@ -47,6 +50,8 @@ pub mod irq {
     pub const UART0: u32 = 10;
     /// UART1 (radio).
     pub const UART1: u32 = 11;
+    /// The vision unit's end of frame.
+    pub const VISION: u32 = 12;
 }
 
 /// PLIC priority of both UARTs (any nonzero value above the threshold 0 interrupts).
@@ -63,6 +68,8 @@ pub type Uart = Port<Mmio>;
 pub type Clock = Clint<Mmio>;
 /// The camera's frame grabber on this board.
 pub type Camera = FrameGrabber<MmioWindow>;
+/// The vision unit on this board.
+pub type Vision = VisionUnit<Mmio, MmioWindow>;
 
 static LBC_PORT: PortState<Mmio> = PortState::new();
 static RADIO_PORT: PortState<Mmio> = PortState::new();
@@ -116,6 +123,9 @@ pub struct Board {
     pub plic: Plic<Mmio>,
     /// Reader of the camera's frame-grabber window at [`map::FRAME_GRABBER`].
     pub camera: Camera,
+    /// The vision unit at [`map::VISION`], when the SoC has one; its end-of-frame interrupt
+    /// is routed (the handler clears it, so it only wakes the program).
+    pub vision: Option<Vision>,
 }
 
 /// The CLINT. Reading time is harmless from anywhere (e.g. log timestamps).
@@ -153,6 +163,28 @@ pub fn camera() -> Camera {
     // SAFETY: the window is RAM (or frame memory) outside the image's region of the linker
     // script, 4 KiB aligned, written only by the camera side; no Rust object lives there.
     FrameGrabber::new(unsafe { MmioWindow::new(map::FRAME_GRABBER, vision::frame::WINDOW_LEN) })
+}
+
+/// The vision unit, if the SoC has one.
+pub fn vision_unit() -> Option<Vision> {
+    let len = vision::run_window::WINDOW_LEN;
+    // SAFETY: the vision unit's register block and run buffers on the softcore SoC (reads of
+    // a missing unit's region return zero, so the probe fails); the buffers are written only
+    // by the unit.
+    let (regs, memory) = unsafe { (Mmio::new(map::VISION), MmioWindow::new(map::VISION, len)) };
+    VisionUnit::probe(regs, memory)
+}
+
+/// Clears the vision unit's end-of-frame flag (its interrupt).
+fn vision_acknowledge() {
+    // SAFETY: the vision unit's status register on the softcore SoC; writing 1 to its bit 0
+    // only clears the flag.
+    let regs = unsafe { Mmio::new(map::VISION) };
+    crate::mmio::RegisterBus::write32(
+        &regs,
+        crate::vision_unit::reg::STATUS,
+        vision::run_window::status::FRAME,
+    );
 }
 
 fn plic() -> Plic<Mmio> {
@@ -193,6 +225,11 @@ impl Board {
             Err(e) => (Err(RadioError::Open(e)), None),
         };
 
+        let vision = vision_unit();
+        if vision.is_some() {
+            plic.route(irq::VISION, UART_PRIORITY);
+        }
+
         #[cfg(all(feature = "rt", target_arch = "riscv32"))]
         handlers::enable();
 
@@ -204,6 +241,7 @@ impl Board {
             exit: exit_device(),
             plic,
             camera: camera(),
+            vision,
         })
     }
 }
@@ -215,6 +253,7 @@ pub fn on_external_interrupt() {
         match source.number() {
             irq::UART0 => LBC_PORT.on_interrupt(),
             irq::UART1 => RADIO_PORT.on_interrupt(),
+            irq::VISION => vision_acknowledge(),
             _ => {}
         }
         plic.complete(source);
