@@ -1,6 +1,9 @@
 //! A fixed gang of threads that steps every item of a list once per round: the calling
-//! thread and `threads - 1` helpers take items in turn from a shared counter (so a slow car
-//! does not hold up the ones behind it), and the round ends when every item is done.
+//! thread and `threads - 1` helpers each own a share of the list and take its items in turn,
+//! then help with the others' shares (so a slow car does not hold up the ones behind it), and
+//! the round ends when every item is done. A thread keeps to its share while it can because
+//! a car's state (its SoC's RAM above all) then stays in that core's cache from one round to
+//! the next; which thread steps a car never changes what the car does.
 //!
 //! The arena runs one round per quantum of world time, tens of thousands per second, each
 //! only microseconds of work per car: a thread pool that puts its threads to sleep between
@@ -24,6 +27,11 @@ const NAP: Duration = Duration::from_millis(2);
 /// The work a round does on each item, with the round's argument.
 type Work<T> = Box<dyn Fn(&mut T, u64) + Send + Sync>;
 
+/// A value on a cache line of its own, so that the threads writing neighbouring counters do
+/// not take the line from each other.
+#[repr(align(128))]
+struct Padded<V>(V);
+
 /// What the gang's threads share.
 struct Shared<T> {
     items: Vec<Mutex<T>>,
@@ -32,10 +40,12 @@ struct Shared<T> {
     round: AtomicU64,
     /// The argument of the current round.
     arg: AtomicU64,
-    /// Next item to take.
-    next: AtomicUsize,
-    /// Items finished in the current round.
-    done: AtomicUsize,
+    /// Per thread: the next item of its share to take.
+    next: Vec<Padded<AtomicUsize>>,
+    /// Per thread: its share, `start..end` of the items.
+    shares: Vec<(usize, usize)>,
+    /// Items finished in the current round (each thread adds what it did when it runs out).
+    done: Padded<AtomicUsize>,
     stop: AtomicBool,
     sleep: Mutex<()>,
     wake: Condvar,
@@ -49,23 +59,33 @@ impl<T> Shared<T> {
             .map(|m| m.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
-    /// Takes items until none is left in this round.
-    fn take_items(&self) {
-        loop {
-            let k = self.next.fetch_add(1, Ordering::AcqRel);
-            // Read after taking the index: a thread still finishing the last round may take
-            // the first item of the next one.
-            let arg = self.arg.load(Ordering::Acquire);
-            let Some(mut item) = self.lock(k) else {
-                return;
-            };
-            (self.work)(&mut item, arg);
-            drop(item);
-            if self.done.fetch_add(1, Ordering::AcqRel) + 1 == self.items.len() {
-                // The caller may be asleep waiting for the last item.
-                let _g = self.sleep.lock().unwrap_or_else(PoisonError::into_inner);
-                self.wake.notify_all();
+    /// Thread `me` takes items until none is left in this round: its own share first, then
+    /// the others'.
+    fn take_items(&self, me: usize) {
+        let threads = self.next.len();
+        let mut did = 0;
+        for j in (0..threads).map(|i| (me + i) % threads) {
+            let end = self.shares[j].1;
+            loop {
+                let k = self.next[j].0.fetch_add(1, Ordering::AcqRel);
+                if k >= end {
+                    break;
+                }
+                // Read after taking the index: a thread still finishing the last round may
+                // take an item of the next one.
+                let arg = self.arg.load(Ordering::Acquire);
+                let Some(mut item) = self.lock(k) else {
+                    break;
+                };
+                (self.work)(&mut item, arg);
+                drop(item);
+                did += 1;
             }
+        }
+        if did > 0 && self.done.0.fetch_add(did, Ordering::AcqRel) + did == self.items.len() {
+            // The caller may be asleep waiting for the last item.
+            let _g = self.sleep.lock().unwrap_or_else(PoisonError::into_inner);
+            self.wake.notify_all();
         }
     }
 
@@ -118,13 +138,23 @@ impl<T: Send + 'static> Gang<T> {
         name: &str,
         work: impl Fn(&mut T, u64) + Send + Sync + 'static,
     ) -> std::io::Result<Self> {
+        let threads = threads.max(1);
+        let n = items.len();
+        let shares: Vec<(usize, usize)> = (0..threads)
+            .map(|t| (t * n / threads, (t + 1) * n / threads))
+            .collect();
         let shared = Arc::new(Shared {
             items: items.into_iter().map(Mutex::new).collect(),
             work: Box::new(work),
             round: AtomicU64::new(0),
             arg: AtomicU64::new(0),
-            next: AtomicUsize::new(usize::MAX / 2),
-            done: AtomicUsize::new(0),
+            // Every share taken until the first round.
+            next: shares
+                .iter()
+                .map(|&(_, end)| Padded(AtomicUsize::new(end)))
+                .collect(),
+            shares,
+            done: Padded(AtomicUsize::new(0)),
             stop: AtomicBool::new(false),
             sleep: Mutex::new(()),
             wake: Condvar::new(),
@@ -133,11 +163,11 @@ impl<T: Send + 'static> Gang<T> {
             shared,
             helpers: Vec::new(),
         };
-        for i in 1..threads.max(1) {
+        for i in 1..threads {
             let s = Arc::clone(&gang.shared);
             let h = std::thread::Builder::new()
                 .name(format!("{name}-{i}"))
-                .spawn(move || helper(&s))?;
+                .spawn(move || helper(&s, i))?;
             gang.helpers.push(h);
         }
         Ok(gang)
@@ -168,19 +198,21 @@ impl<T: Send + 'static> Gang<T> {
     pub fn round(&self, arg: u64) {
         let s = &self.shared;
         s.arg.store(arg, Ordering::Release);
-        s.done.store(0, Ordering::Release);
-        s.next.store(0, Ordering::Release);
+        s.done.0.store(0, Ordering::Release);
+        for (next, &(start, _)) in s.next.iter().zip(&s.shares) {
+            next.0.store(start, Ordering::Release);
+        }
         s.round.fetch_add(1, Ordering::AcqRel);
         if !self.helpers.is_empty() {
             let _g = s.sleep.lock().unwrap_or_else(PoisonError::into_inner);
             s.wake.notify_all();
         }
-        s.take_items();
-        s.wait(|| s.done.load(Ordering::Acquire) >= s.items.len());
+        s.take_items(0);
+        s.wait(|| s.done.0.load(Ordering::Acquire) >= s.items.len());
     }
 }
 
-fn helper<T>(s: &Shared<T>) {
+fn helper<T>(s: &Shared<T>, me: usize) {
     let mut seen = 0;
     loop {
         s.wait(|| s.stop.load(Ordering::Acquire) || s.round.load(Ordering::Acquire) != seen);
@@ -188,7 +220,7 @@ fn helper<T>(s: &Shared<T>) {
             return;
         }
         seen = s.round.load(Ordering::Acquire);
-        s.take_items();
+        s.take_items(me);
     }
 }
 

@@ -4,7 +4,7 @@
 
 use super::{k, Burst};
 use crate::exec::{divide, fetched_word};
-use crate::{Soc, RAM_BASE, RAM_HALVES, RAM_SIZE, RAM_WORDS};
+use crate::{SharedCode, Soc, RAM_BASE, RAM_HALVES, RAM_SIZE, RAM_WORDS};
 
 impl Soc {
     /// [`Soc::burst`] without tracing, for a SoC that runs its image's shared code: every
@@ -12,11 +12,21 @@ impl Soc {
     /// store into it end the burst for the general path), so the loop keeps little state:
     /// the program counter, the cycles left before the deadline and the count of
     /// instructions.
-    #[inline(never)]
     pub(super) fn burst_shared(&mut self, deadline: u64) -> Burst {
-        let Some(code) = self.code.clone() else {
+        // Taken out for the burst and put back, not cloned: a clone would count on the `Arc`
+        // that every car's SoC shares, from both threads at every burst, and that cache line
+        // going back and forth between the cores was more than half of the burst's time.
+        let Some(code) = self.code.take() else {
             return self.burst::<false>(deadline);
         };
+        let result = self.burst_in(&code, deadline);
+        self.code = Some(code);
+        result
+    }
+
+    /// The burst of [`Soc::burst_shared`] over `code` (taken out of `self.code`).
+    #[inline(never)]
+    fn burst_in(&mut self, code: &SharedCode, deadline: u64) -> Burst {
         let (first, end) = (code.first, code.end);
         let Ok(table) = <&[u64; RAM_HALVES]>::try_from(&code.ops[..]) else {
             return Burst::Slow;
