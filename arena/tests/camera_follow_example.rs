@@ -2,7 +2,7 @@
 //! model: both cars' firmware process their camera's 30 frames per second through the vision
 //! unit, and car 2 closes up by its camera alone to about the law's 500 mm behind car 1, which
 //! stands still. The phase has no end of its own (the law does not report convergence), so it
-//! runs to its timeout.
+//! runs for its `timeout_s`, and that completes it.
 
 #[path = "arena_common.rs"]
 mod common;
@@ -17,6 +17,10 @@ fn camera_follow_example_at_30_fps_on_the_vision_unit() {
     let o = common::run_full(CAMERA_FOLLOW, "camera-follow");
     let doc = &o.doc;
     assert!(o.summary.collisions.is_empty(), "{doc:#}");
+    // The camera follow's phase ends when its time is up, and that is not a timeout.
+    assert!(o.summary.completed, "{doc:#}");
+    let phase = &o.summary.phases[0];
+    assert!(phase.completed && !phase.timed_out, "{doc:#}");
     for r in &o.summary.cars {
         let fps = r.camera_fps.expect("camera frames counted");
         assert!((29.0..=30.5).contains(&fps), "car {}: {fps} fps", r.id);

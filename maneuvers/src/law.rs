@@ -285,6 +285,10 @@ pub trait Law: Sized + Clone + core::fmt::Debug {
     /// Whether the controller's commands drive the car. A law that only reports (the camera
     /// follow, which the firmware's camera part carries out) sets this to `false`.
     const DRIVES: bool = true;
+    /// Whether the law can say it has converged. One that cannot (the camera follow, which
+    /// keeps following) ends an experiment's phase when the phase's time is up, and that is
+    /// its normal end, not a timeout.
+    const CONVERGES: bool = true;
 
     /// The law from its parameter values (in [`Law::PARAMS`] order, each within its range).
     fn new(params: &Values) -> Self;

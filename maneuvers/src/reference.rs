@@ -83,6 +83,11 @@ pub fn write_law(out: &mut impl Write, law: &LawInfo) -> fmt::Result {
             " The controller only reports; another part of the firmware drives the car.",
         )?;
     }
+    if !law.converges {
+        out.write_str(
+            " It never reports convergence: an experiment's phase of it ends at its `timeout_s` (or the next phase's `start_s`), as completed.",
+        )?;
+    }
     writeln!(out)
 }
 

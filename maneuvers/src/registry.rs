@@ -33,6 +33,8 @@ pub struct LawInfo {
     pub options: LawOptions,
     /// Whether the controller's commands drive the car.
     pub drives: bool,
+    /// Whether the law can report convergence ([`Law::CONVERGES`]).
+    pub converges: bool,
 }
 
 impl LawInfo {
@@ -45,6 +47,7 @@ impl LawInfo {
             params: L::PARAMS,
             options: L::OPTIONS,
             drives: L::DRIVES,
+            converges: L::CONVERGES,
         }
     }
 

@@ -222,7 +222,10 @@ impl Runner<'_> {
             a.holding_since = None;
         }
         let timed_out = phase.timeout_s.is_some_and(|limit| t - a.start_s >= limit);
-        timed_out.then_some(false)
+        // A law that never says it has converged (the camera follow) completes when its time
+        // is up.
+        let open_ended = matches!(&phase.kind, PhaseKind::Law(l) if !l.law.converges);
+        timed_out.then_some(open_ended)
     }
 
     /// Closes the active phase; `now` is the latest sample of every car.

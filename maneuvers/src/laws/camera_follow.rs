@@ -30,6 +30,7 @@ impl Law for CameraFollow {
             .doc("maximum speed"),
     ];
     const DRIVES: bool = false;
+    const CONVERGES: bool = false;
 
     fn new(p: &Values) -> Self {
         CameraFollow {
