@@ -140,6 +140,21 @@ fn check_outputs(out: &Path, exp: &Experiment) -> Value {
     }
     assert!(events.contains("\"maneuver-started\""));
     assert!(events.contains("\"phase-started\""));
+    // run.json names every car's firmware and the SHA-256 of its bytes.
+    let info: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    let fw = info["firmware"].as_array().expect("firmware list");
+    assert_eq!(fw.len(), exp.cars.len(), "{info:#}");
+    for (f, car) in fw.iter().zip(&exp.cars) {
+        assert_eq!(f["car"].as_u64(), Some(u64::from(car.id)), "{info:#}");
+        let elf = f["elf"].as_str().expect("ELF path");
+        let sha = f["sha256"].as_str().expect("SHA-256");
+        assert!(
+            sha.len() == 64 && sha.bytes().all(|b| b.is_ascii_hexdigit()),
+            "{info:#}"
+        );
+        assert!(std::path::Path::new(elf).is_file(), "{info:#}");
+    }
     let svg = std::fs::read_to_string(out.join("trajectories.svg")).unwrap();
     assert!(svg.starts_with("<svg ") && svg.trim_end().ends_with("</svg>"));
     for car in &exp.cars {

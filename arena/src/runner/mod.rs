@@ -674,7 +674,7 @@ fn run_inner(
     } else {
         "complete"
     };
-    output::write_run_info(out, &world, state, wall_start, wall.elapsed())?;
+    output::write_run_info(out, &world, &cfg, state, wall_start, wall.elapsed())?;
     world.shutdown();
     Ok(summary)
 }

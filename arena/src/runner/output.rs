@@ -192,6 +192,7 @@ pub(super) fn finish(
 pub(super) fn write_run_info(
     out: &Path,
     world: &World,
+    cfg: &crate::world::WorldConfig,
     state: &str,
     started: std::time::SystemTime,
     wall: Duration,
@@ -214,12 +215,40 @@ pub(super) fn write_run_info(
         "host": host,
         "arena_version": env!("CARGO_PKG_VERSION"),
         "cars": world.ids().len(),
+        "firmware": firmware_info(cfg),
         "load": (0..world.ids().len()).map(|k| world.core_load(k).map(|l| json!({
             "cycles": l.cycles, "awake_cycles": l.awake_cycles, "retired": l.retired,
         }))).collect::<Vec<_>>(),
     });
     let text = serde_json::to_string_pretty(&info).unwrap_or_default();
     write_file(&out.join("run.json"), &text)
+}
+
+/// Each car's firmware ELF with the SHA-256 of its bytes (`null` when it cannot be read): the
+/// firmware is an input of the run as much as the experiment file.
+fn firmware_info(cfg: &crate::world::WorldConfig) -> serde_json::Value {
+    use sha2::{Digest, Sha256};
+    let mut digests: std::collections::BTreeMap<&Path, Option<String>> = Default::default();
+    let cars: Vec<serde_json::Value> = cfg
+        .cars
+        .iter()
+        .map(|c| {
+            let elf = c.firmware.as_deref().unwrap_or(&cfg.firmware);
+            let sha = digests
+                .entry(elf)
+                .or_insert_with(|| {
+                    fs::read(elf).ok().map(|b| {
+                        Sha256::digest(&b)
+                            .iter()
+                            .map(|x| format!("{x:02x}"))
+                            .collect()
+                    })
+                })
+                .clone();
+            json!({ "car": c.id, "elf": elf.display().to_string(), "sha256": sha })
+        })
+        .collect();
+    serde_json::Value::Array(cars)
 }
 
 /// `[t, error_mm]` pairs as columns named with their units: `{"t_s": [...], "error_mm": [...]}`.
