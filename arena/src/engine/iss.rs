@@ -13,6 +13,7 @@ use soc_model::{Halt, Output, Port, Retired, Soc, Stamped, CLOCK_HZ};
 use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -102,6 +103,8 @@ struct IssCar {
     ran_to: Nanos,
     /// The world's traffic for this car during a quantum (swapped in and out around it).
     io: CarIo,
+    /// Cars of the engine that have failed (shared by all of them).
+    failed: Arc<AtomicUsize>,
 }
 
 impl IssCar {
@@ -177,6 +180,9 @@ impl IssCar {
                     why: format!("{reason:?}"),
                 },
             };
+            if self.failure.is_none() {
+                self.failed.fetch_add(1, Ordering::Relaxed);
+            }
             self.failure = Some(Failure {
                 at: time_of(self.soc.cycle()),
                 kind,
@@ -216,6 +222,8 @@ impl WindowWriter for IssCar {
 /// The virtual-time engine.
 pub struct IssEngine {
     cars: Gang<IssCar>,
+    /// Cars that have failed (every car holds a clone).
+    failed: Arc<AtomicUsize>,
 }
 
 impl fmt::Debug for IssEngine {
@@ -262,6 +270,7 @@ impl IssEngine {
     pub fn new(firmware: &[PathBuf], threads: usize, profiled: &[usize]) -> Result<Self, IssError> {
         let mut images: HashMap<&Path, Image> = HashMap::new();
         let mut cars = Vec::with_capacity(firmware.len());
+        let failed = Arc::new(AtomicUsize::new(0));
         for path in firmware {
             if !images.contains_key(path.as_path()) {
                 images.insert(path, load_image(path)?);
@@ -278,11 +287,12 @@ impl IssEngine {
                 failure: None,
                 ran_to: 0,
                 io: CarIo::default(),
+                failed: failed.clone(),
             });
         }
         let cars = Gang::new(cars, threads, "arena-iss", IssCar::step)
             .map_err(|e| IssError::Threads(e.to_string()))?;
-        Ok(IssEngine { cars })
+        Ok(IssEngine { cars, failed })
     }
 }
 
@@ -362,6 +372,11 @@ impl CarEngine for IssEngine {
         self.cars.item(k)?.failure.clone()
     }
 
+    fn failures(&self) -> Option<usize> {
+        // Read between rounds, when no car is running: every count made in the round is in.
+        Some(self.failed.load(Ordering::Relaxed))
+    }
+
     fn with_window(&mut self, k: usize, f: &mut dyn FnMut(&mut dyn WindowWriter)) -> bool {
         match self.cars.item(k) {
             Some(mut car) => {
@@ -422,6 +437,7 @@ impl CarEngine for IssEngine {
                     at: c.ran_to,
                     kind: FailureKind::Killed { why: why.into() },
                 });
+                self.failed.fetch_add(1, Ordering::Relaxed);
             }
         }
     }

@@ -154,6 +154,12 @@ pub trait CarEngine: Send {
     fn advance(&mut self, until: Nanos, io: &mut [CarIo]);
     /// Car `k`'s failure, once its firmware has stopped.
     fn failure(&self, k: usize) -> Option<Failure>;
+    /// How many cars have failed so far, where the engine counts them cheaply: the world
+    /// then asks [`CarEngine::failure`] of each car only when the count moves. `None`: ask
+    /// every quantum.
+    fn failures(&self) -> Option<usize> {
+        None
+    }
     /// Runs `f` on car `k`'s frame-grabber window; false when the car has none.
     fn with_window(&mut self, k: usize, f: &mut dyn FnMut(&mut dyn WindowWriter)) -> bool;
     /// Car `k`'s processor load, for engines that count cycles.

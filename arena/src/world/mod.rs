@@ -102,6 +102,8 @@ pub struct World {
     camera: Option<Camera>,
     user: Option<UserLink>,
     failed: Vec<bool>,
+    /// The engine's count of failed cars when the world last looked ([`CarEngine::failures`]).
+    failures_seen: Option<usize>,
     events: Vec<WorldEvent>,
     now: Nanos,
     quantum: Nanos,
@@ -314,6 +316,7 @@ impl World {
             camera,
             user,
             failed: vec![false; n],
+            failures_seen: None,
             events: Vec::new(),
             now: 0,
             // QEMU cars run on their own; meeting them every millisecond (as a socket poll)
@@ -534,6 +537,11 @@ impl World {
 
     /// Records cars whose firmware stopped, and stops their vehicles.
     fn note_failures(&mut self) {
+        let count = self.engine.failures();
+        if count.is_some() && count == self.failures_seen {
+            return;
+        }
+        self.failures_seen = count;
         for k in 0..self.ids.len() {
             if self.failed[k] {
                 continue;
