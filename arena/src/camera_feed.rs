@@ -114,7 +114,9 @@ pub fn host_runs(ram: &mut SharedRam, codes: &[u8], width: u16) -> io::Result<bo
     let Ok(mut header) = RunHeader::parse(&head) else {
         return Ok(false);
     };
-    let c = u32::from_le_bytes([head[64], head[65], head[66], head[67]]);
+    let mut c = [0u8; 4];
+    c.copy_from_slice(&head[run_window::field::CTRL]);
+    let c = u32::from_le_bytes(c);
     if c & ctrl::ENABLE == 0 {
         return Ok(true);
     }

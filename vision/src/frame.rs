@@ -166,13 +166,15 @@ impl FrameTicket {
     }
 }
 
-fn u16_at(b: &[u8], r: Range<usize>) -> u16 {
+/// The little-endian `u16` at `b[r]` (`r` two bytes long).
+pub(crate) fn u16_at(b: &[u8], r: Range<usize>) -> u16 {
     let mut a = [0u8; 2];
     a.copy_from_slice(&b[r]);
     u16::from_le_bytes(a)
 }
 
-fn u32_at(b: &[u8], r: Range<usize>) -> u32 {
+/// The little-endian `u32` at `b[r]` (`r` four bytes long).
+pub(crate) fn u32_at(b: &[u8], r: Range<usize>) -> u32 {
     let mut a = [0u8; 4];
     a.copy_from_slice(&b[r]);
     u32::from_le_bytes(a)

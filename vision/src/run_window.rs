@@ -9,6 +9,7 @@
 
 use core::ops::Range;
 
+use crate::frame::{u16_at, u32_at};
 use crate::runs::MAX_CAPACITY;
 
 /// `b"ALRN"`.
@@ -148,18 +149,6 @@ impl RunTicket {
     }
 }
 
-fn word(b: &[u8], r: Range<usize>) -> u32 {
-    let mut a = [0u8; 4];
-    a.copy_from_slice(&b[r]);
-    u32::from_le_bytes(a)
-}
-
-fn half(b: &[u8], r: Range<usize>) -> u16 {
-    let mut a = [0u8; 2];
-    a.copy_from_slice(&b[r]);
-    u16::from_le_bytes(a)
-}
-
 impl Header {
     /// An empty header for buffers of `capacity` words (nothing published; buffer 0 is
     /// written first).
@@ -185,20 +174,20 @@ impl Header {
         if magic != MAGIC {
             return Err(HeaderError::BadMagic { got: magic });
         }
-        let version = half(bytes, field::VERSION);
+        let version = u16_at(bytes, field::VERSION);
         if version != VERSION {
             return Err(HeaderError::UnsupportedVersion { got: version });
         }
-        let header_len = half(bytes, field::HEADER_LEN);
+        let header_len = u16_at(bytes, field::HEADER_LEN);
         if usize::from(header_len) != HEADER_LEN {
             return Err(HeaderError::BadHeaderLen { got: header_len });
         }
-        let capacity = word(bytes, field::CAPACITY);
+        let capacity = u32_at(bytes, field::CAPACITY);
         if capacity == 0 || capacity as usize > MAX_CAPACITY {
             return Err(HeaderError::BadCapacity { got: capacity });
         }
         for (i, &want) in BUFFER_OFFSET.iter().enumerate() {
-            let got = word(bytes, field::BUFFER_OFFSET[i].clone());
+            let got = u32_at(bytes, field::BUFFER_OFFSET[i].clone());
             if got as usize != want {
                 return Err(HeaderError::BadBufferOffset {
                     index: i as u8,
@@ -206,13 +195,13 @@ impl Header {
                 });
             }
         }
-        let ready = word(bytes, field::READY);
+        let ready = u32_at(bytes, field::READY);
         if ready > 1 {
             return Err(HeaderError::BadReadyIndex { got: ready });
         }
         let count = [
-            word(bytes, field::COUNT[0].clone()),
-            word(bytes, field::COUNT[1].clone()),
+            u32_at(bytes, field::COUNT[0].clone()),
+            u32_at(bytes, field::COUNT[1].clone()),
         ];
         for (i, &c) in count.iter().enumerate() {
             if c > capacity {
@@ -223,21 +212,21 @@ impl Header {
             }
         }
         let size = |i: usize| {
-            let s = word(bytes, field::SIZE[i].clone());
+            let s = u32_at(bytes, field::SIZE[i].clone());
             (s as u16, (s >> 16) as u16)
         };
         Ok(Header {
             capacity,
-            sequence: word(bytes, field::SEQUENCE),
+            sequence: u32_at(bytes, field::SEQUENCE),
             ready,
             buffer_seq: [
-                word(bytes, field::BUFFER_SEQ[0].clone()),
-                word(bytes, field::BUFFER_SEQ[1].clone()),
+                u32_at(bytes, field::BUFFER_SEQ[0].clone()),
+                u32_at(bytes, field::BUFFER_SEQ[1].clone()),
             ],
             count,
             dropped: [
-                word(bytes, field::DROPPED[0].clone()),
-                word(bytes, field::DROPPED[1].clone()),
+                u32_at(bytes, field::DROPPED[0].clone()),
+                u32_at(bytes, field::DROPPED[1].clone()),
             ],
             size: [size(0), size(1)],
         })
