@@ -182,6 +182,15 @@ pub fn run(args: TestArgs) -> Result<()> {
     }
     let failed: Vec<&str> = results.iter().filter(|r| !r.ok).map(|r| r.name).collect();
     println!("tests: {} passed, {} failed", totals.passed, totals.failed);
+    if !totals.failures.is_empty() {
+        println!("\n==> failed tests");
+        for f in &totals.failures {
+            println!("  {}", f.name);
+            for line in &f.excerpt {
+                println!("      {line}");
+            }
+        }
+    }
     if !failed.is_empty() {
         bail!("failed stages: {}", failed.join(", "));
     }
@@ -210,13 +219,26 @@ struct TestCounts {
     passed: u64,
     failed: u64,
     ignored: u64,
+    /// Each failed test's name and the first lines of what it printed, so the summary at the
+    /// end of a long log says what failed without scrolling back.
+    failures: Vec<Failure>,
 }
+
+#[derive(Debug, Clone)]
+struct Failure {
+    name: String,
+    excerpt: Vec<String>,
+}
+
+/// Lines of a failed test's output that the summary repeats.
+const EXCERPT_LINES: usize = 8;
 
 impl TestCounts {
     fn add(&mut self, other: &TestCounts) {
         self.passed += other.passed;
         self.failed += other.failed;
         self.ignored += other.ignored;
+        self.failures.extend(other.failures.iter().cloned());
     }
 
     /// Reads libtest's `test result: ok. 12 passed; 0 failed; 1 ignored; ...` line.
@@ -238,19 +260,62 @@ impl TestCounts {
     }
 }
 
+/// Collects libtest's `---- NAME stdout ----` sections (printed for each failed test).
+#[derive(Default)]
+struct FailureReader {
+    current: Option<Failure>,
+    done: Vec<Failure>,
+}
+
+impl FailureReader {
+    fn line(&mut self, line: &str) {
+        if let Some(name) = line
+            .strip_prefix("---- ")
+            .and_then(|rest| rest.strip_suffix(" stdout ----"))
+        {
+            self.finish();
+            self.current = Some(Failure {
+                name: name.to_string(),
+                excerpt: Vec::new(),
+            });
+            return;
+        }
+        // A section ends at libtest's `failures:` list or the next section.
+        if line == "failures:" || line.starts_with("test result: ") {
+            self.finish();
+            return;
+        }
+        if let Some(f) = &mut self.current {
+            if f.excerpt.len() < EXCERPT_LINES && !line.trim().is_empty() {
+                f.excerpt.push(line.to_string());
+            }
+        }
+    }
+
+    fn finish(&mut self) {
+        if let Some(f) = self.current.take() {
+            self.done.push(f);
+        }
+    }
+}
+
 /// Runs a `cargo test` command, passing its output through and adding up its result lines.
 fn run_counting(cmd: &mut Command) -> Result<TestCounts> {
     cmd.current_dir(workspace_root()).stdout(Stdio::piped());
     let mut child = cmd.spawn().context("starting cargo test")?;
     let stdout = child.stdout.take().context("cargo test stdout")?;
     let mut counts = TestCounts::default();
+    let mut failures = FailureReader::default();
     for line in BufReader::new(stdout).lines() {
         let line = line.context("reading cargo test output")?;
         println!("{line}");
+        failures.line(&line);
         if let Some(c) = TestCounts::parse_line(&line) {
             counts.add(&c);
         }
     }
+    failures.finish();
+    counts.failures = failures.done;
     let status = child.wait().context("waiting for cargo test")?;
     if !status.success() {
         bail!("cargo test failed ({status}): {} failed", counts.failed);
@@ -338,7 +403,25 @@ fn fuzz_targets() -> Result<Vec<String>> {
 
 #[cfg(test)]
 mod tests {
-    use super::TestCounts;
+    use super::{FailureReader, TestCounts};
+
+    #[test]
+    fn collects_failed_tests_with_their_message() {
+        let log = "running 2 tests\ntest a ... ok\ntest b::c ... FAILED\n\nfailures:\n\n\
+                   ---- b::c stdout ----\n\nthread 'b::c' panicked at src/x.rs:3:5:\nboom\n\n\
+                   failures:\n    b::c\n\ntest result: FAILED. 1 passed; 1 failed; 0 ignored\n";
+        let mut r = FailureReader::default();
+        for line in log.lines() {
+            r.line(line);
+        }
+        r.finish();
+        assert_eq!(r.done.len(), 1);
+        assert_eq!(r.done[0].name, "b::c");
+        assert_eq!(
+            r.done[0].excerpt,
+            ["thread 'b::c' panicked at src/x.rs:3:5:", "boom"]
+        );
+    }
 
     #[test]
     fn parses_libtest_result_line() {
