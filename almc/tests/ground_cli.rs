@@ -149,7 +149,10 @@ fn raw_request_gets_its_reply_and_the_counter_only_grows() {
     assert_eq!(stored, first + 1);
 
     let o = send("3");
-    assert!(o.status.success(), "{o:?}");
+    if !o.status.success() {
+        let r = w.stop();
+        panic!("{o:?}\n{r:#?}");
+    }
     let second = json(&o)["results"][0]["counter"].as_u64().unwrap();
     assert!(second > first, "{second} after {first}");
 

@@ -52,6 +52,11 @@ pub const HELLO_GAP_US: u64 = 20_000;
 pub const SESSION_OPEN_GAP_US: u64 = 20_000;
 /// Largest random delay of a car's first Hello.
 pub const HELLO_FIRST_JITTER_US: u64 = 50_000;
+/// Largest random delay of a Hello asked for by a frame every car hears at the same instant
+/// (a GroundBeat of another epoch, a broadcast command a car cannot verify): without it every
+/// car of a restarted station answers its first heartbeat at once, the Hellos collide, and
+/// they collide again at every heartbeat.
+pub const HELLO_REACT_JITTER_US: u64 = 50_000;
 
 /// Retransmission parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -410,6 +415,9 @@ pub struct Endpoint<const N: usize> {
     /// Car: when the next periodic Hello is due (the first one after a random delay of up
     /// to [`HELLO_FIRST_JITTER_US`], so that cars started together do not collide).
     hello_due: Option<u64>,
+    /// Car: when the Hello asked for by a frame every car heard is due (see
+    /// [`HELLO_REACT_JITTER_US`]).
+    hello_soon: Option<u64>,
     /// Ground station: session epoch, next command and heartbeat counters.
     pub(crate) epoch: u32,
     pub(crate) next_command: u32,
@@ -468,6 +476,7 @@ impl<const N: usize> Endpoint<N> {
             hello_at: None,
             hellos_unanswered: 0,
             hello_due: None,
+            hello_soon: None,
             epoch: 0,
             next_command: 0,
             next_beat: 1,
@@ -1096,6 +1105,10 @@ impl<const N: usize> Endpoint<N> {
                 self.hello(now, HELLO_GAP_US);
             }
         }
+        if self.hello_soon.is_some_and(|t| now >= t) {
+            self.hello_soon = None;
+            self.hello(now, HELLO_GAP_US);
+        }
     }
 
     /// Earliest time at which [`Endpoint::poll`] has work to do.
@@ -1111,6 +1124,9 @@ impl<const N: usize> Endpoint<N> {
         }
         if self.session.is_none() && self.key.is_some() && matches!(self.own, Address::Car(_)) {
             t = t.min(self.hello_due.unwrap_or(now));
+        }
+        if let Some(soon) = self.hello_soon {
+            t = t.min(soon);
         }
         t
     }

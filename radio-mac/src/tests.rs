@@ -990,3 +990,71 @@ proptest! {
         prop_assert_eq!(auth::verify(&key, epoch ^ 1, &f), authenticated && !bound);
     }
 }
+
+/// A station that restarts (a new `almc` process, a new epoch) while the cars still hold the
+/// old session: its first heartbeat reaches every car at the same instant. On a channel
+/// where two frames sent in the same millisecond destroy each other, the cars' Hellos must
+/// not all go out at once, or they collide at that heartbeat and at every one after it.
+#[test]
+fn cars_answer_a_restarted_station_without_colliding() {
+    let ids = [2u8, 3, 4, 5, 6];
+    let mut net = Net::new(10, &ids);
+    let mut tape = std::vec::Vec::new();
+    net.run_ms(300, &mut tape);
+    assert!(net.cars.iter().all(|c| c.session().is_some()));
+    let mut cfg = GroundConfig::new(Key::new(KEY), 500);
+    cfg.epoch = 77;
+    net.g = GroundStation::new(cfg);
+    let mut hello_ms: std::vec::Vec<(u64, u8)> = std::vec::Vec::new();
+    for _ in 0..3_000 {
+        net.now += 1_000;
+        let now = net.now;
+        net.g.poll(now);
+        let from_ground = drain_ground(&mut net.g);
+        let mut senders = 0;
+        let mut from_cars = std::vec::Vec::new();
+        for c in &mut net.cars {
+            let before = c.stats().hellos_sent;
+            c.push_rx(now, &from_ground);
+            c.poll(now);
+            let _ = events(c);
+            if c.stats().hellos_sent != before {
+                hello_ms.push((now / 1_000, c.id().get()));
+            }
+            let out = drain(c);
+            if !out.is_empty() {
+                senders += 1;
+                from_cars.extend(out);
+            }
+        }
+        // Two senders in one millisecond: nothing arrives.
+        if senders == 1 {
+            net.g.push_rx(now, &from_cars);
+        }
+        let _ = ground_events(&mut net.g);
+        if net
+            .cars
+            .iter()
+            .all(|c| c.session().map(|s| s.epoch) == Some(77))
+        {
+            break;
+        }
+    }
+    for c in &net.cars {
+        assert_eq!(
+            c.session().map(|s| s.epoch),
+            Some(77),
+            "car {} did not join the new epoch; Hellos at {hello_ms:?}",
+            c.id().get()
+        );
+    }
+    // The first heartbeat's Hellos went out at different instants.
+    let first: std::vec::Vec<u64> = ids
+        .iter()
+        .filter_map(|id| hello_ms.iter().find(|h| h.1 == *id).map(|h| h.0))
+        .collect();
+    let mut distinct = first.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    assert_eq!(distinct.len(), ids.len(), "{hello_ms:?}");
+}

@@ -28,7 +28,12 @@ impl<const N: usize> Endpoint<N> {
                 self.stats.auth_bad_mac += 1;
             }
             self.stats.auth_no_session += 1;
-            self.hello(now, HELLO_GAP_US);
+            if dst == Address::Broadcast {
+                // Every car without a session heard it: answering at once would collide.
+                self.hello_later(now);
+            } else {
+                self.hello(now, HELLO_GAP_US);
+            }
             return;
         };
         if !auth::verify(key, session.epoch, &frame) {
@@ -88,9 +93,10 @@ impl<const N: usize> Endpoint<N> {
             return;
         }
         let Some(mut session) = self.session.filter(|s| s.epoch == epoch) else {
-            // Our ground station in another session (it restarted, or we did).
+            // Our ground station in another session (it restarted, or we did). Every car
+            // heard this heartbeat at the same instant.
             self.stats.auth_no_session += 1;
-            self.hello(now, HELLO_GAP_US);
+            self.hello_later(now);
             return;
         };
         if session.beats.check(beat) != Freshness::Fresh {
@@ -125,6 +131,15 @@ impl<const N: usize> Endpoint<N> {
             self.hello_at = Some(now);
             self.hellos_unanswered = self.hellos_unanswered.saturating_add(1);
             self.stats.hellos_sent += 1;
+        }
+    }
+
+    /// Car: a Hello after a random delay of up to [`HELLO_REACT_JITTER_US`] (one already
+    /// planned stands).
+    pub(super) fn hello_later(&mut self, now: u64) {
+        if self.hello_soon.is_none() && self.key.is_some() {
+            let delay = u64::from(self.random()) % HELLO_REACT_JITTER_US;
+            self.hello_soon = Some(now + delay);
         }
     }
 
@@ -197,6 +212,7 @@ impl<const N: usize> Endpoint<N> {
             return;
         }
         self.hello_nonce = None;
+        self.hello_soon = None;
         self.hellos_unanswered = 0;
         let mut session = Session {
             epoch,
