@@ -139,12 +139,7 @@ pub fn run(args: TestArgs) -> Result<()> {
             }
             (None, false) => bail!("the firmware did not build, so the QEMU tests cannot run"),
         }
-        let counts = run_counting(&mut cmd)?;
-        totals.add(&counts);
-        Ok(format!(
-            "{} passed, {} failed, {} ignored",
-            counts.passed, counts.failed, counts.ignored
-        ))
+        tally(run_counting(&mut cmd)?, &mut totals)
     });
 
     record("firmware logic tests (host)", &mut || {
@@ -158,12 +153,7 @@ pub fn run(args: TestArgs) -> Result<()> {
             "--target-dir",
             "ubc-app/target/host",
         ]);
-        let counts = run_counting(&mut cmd)?;
-        totals.add(&counts);
-        Ok(format!(
-            "{} passed, {} failed, {} ignored",
-            counts.passed, counts.failed, counts.ignored
-        ))
+        tally(run_counting(&mut cmd)?, &mut totals)
     });
 
     if args.fuzz_seconds > 0 {
@@ -300,7 +290,7 @@ impl FailureReader {
 }
 
 /// Runs a `cargo test` command, passing its output through and adding up its result lines.
-fn run_counting(cmd: &mut Command) -> Result<TestCounts> {
+fn run_counting(cmd: &mut Command) -> Result<(TestCounts, std::process::ExitStatus)> {
     cmd.current_dir(workspace_root()).stdout(Stdio::piped());
     let mut child = cmd.spawn().context("starting cargo test")?;
     let stdout = child.stdout.take().context("cargo test stdout")?;
@@ -317,10 +307,21 @@ fn run_counting(cmd: &mut Command) -> Result<TestCounts> {
     failures.finish();
     counts.failures = failures.done;
     let status = child.wait().context("waiting for cargo test")?;
+    Ok((counts, status))
+}
+
+/// Adds a `cargo test` run's counts and failures to `totals` (a failed run's too, so that the
+/// summary names its failed tests), then fails if the run did.
+fn tally(run: (TestCounts, std::process::ExitStatus), totals: &mut TestCounts) -> Result<String> {
+    let (counts, status) = run;
+    totals.add(&counts);
     if !status.success() {
         bail!("cargo test failed ({status}): {} failed", counts.failed);
     }
-    Ok(counts)
+    Ok(format!(
+        "{} passed, {} failed, {} ignored",
+        counts.passed, counts.failed, counts.ignored
+    ))
 }
 
 /// Runs each fuzz target for a few seconds with cargo-fuzz on the nightly toolchain.

@@ -102,12 +102,24 @@ impl Law for Platoon {
         // A car past its place waits for the car ahead to draw away rather than turn round
         // into the car behind it: it never drives against the platoon's direction. Up to
         // half a gap too close and a quarter of one aside (it cannot move sideways) it counts
-        // as in place.
+        // as in place; so does a car in line behind a standing car ahead (the gap kept within
+        // a quarter, and behind it along its heading), whose place only lies aside because
+        // the car ahead stopped turned: waiting there is all it can do, and the platoon is
+        // formed.
         if vx * cos + vy * sin <= 0 {
             let past = -((ex * cos + ey * sin) >> 14);
             let aside = ((ey * cos - ex * sin) >> 14).abs();
             let close = past >= 0 && past < self.gap_units / 2 && aside < self.gap_units / 4;
-            return Plan::hold(Phase::Hold, converged || close, error_units);
+            let in_line = v.abs() < STILL_MM_S && {
+                // From this car to the car ahead: its place's offset plus the gap.
+                let (gx, gy) = along(self.gap_units);
+                let (rx, ry) = (ex + gx, ey + gy);
+                let distance = imath::hypot(rx, ry).min(i32::MAX as u32) as i32;
+                let behind = (rx * cos + ry * sin) >> 14;
+                (distance - self.gap_units).abs() < self.gap_units / 4
+                    && behind > self.gap_units * 4 / 5
+            };
+            return Plan::hold(Phase::Hold, converged || close || in_line, error_units);
         }
         // The speed is at most 1000 mm/s: this fits.
         let max = (2 * self.speed_mm_s).max(300);
@@ -312,6 +324,29 @@ mod tests {
         let plan = step(&mut p, 2, far_past, &others, None);
         assert_eq!(plan.guidance, Guidance::Hold);
         assert!(!plan.converged);
+    }
+
+    /// The end of a run in QEMU: the car ahead stopped turned about 10 degrees, so this car's
+    /// place lies 32 units aside and a little behind it; the car is in line at the right
+    /// distance. It waits and counts as in place, or the phase could never complete.
+    #[test]
+    fn a_car_in_line_behind_a_car_that_stopped_turned_is_in_place() {
+        // The experiment's gap: 120 units.
+        let mut p = Platoon::new(&Values::from_slice(&[1, 120, 150]).unwrap());
+        let others = [car(1, 458, 459, 1751, 0)];
+        let own = CarPose {
+            x: 447,
+            y: 343,
+            heading_mrad: 1571,
+            velocity_mm_s: 0,
+        };
+        let plan = step(&mut p, 2, own, &others, None);
+        assert_eq!(plan.guidance, Guidance::Hold);
+        assert!(plan.error_units > 30, "{plan:?}");
+        assert!(plan.converged, "{plan:?}");
+        // The same place behind a car still moving: not in place yet.
+        let others = [car(1, 458, 459, 1751, 40)];
+        assert!(!step(&mut p, 2, own, &others, None).converged);
     }
 
     /// Four cars in the simulation: they close up behind the leader, follow it to its
