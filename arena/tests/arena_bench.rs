@@ -63,16 +63,13 @@ fn grid(n: usize) -> Vec<CarSpec> {
 }
 
 fn world(engine: EngineKind, cars: Vec<CarSpec>, threads: usize) -> World {
-    world_profiled(engine, cars, threads, Vec::new())
+    World::start(&config(engine, cars, threads)).expect("world starts")
 }
 
 /// [`world`] with the world's seed (the seed of every random source: the LBCs, the radio
 /// medium and ground station, the tracker).
 fn world_seeded(engine: EngineKind, cars: Vec<CarSpec>, threads: usize, seed: u64) -> World {
-    let elf = engine.default_firmware().expect("firmware ELF");
-    let mut cfg = WorldConfig::new(elf, cars);
-    cfg.engine = engine;
-    cfg.threads = threads;
+    let mut cfg = config(engine, cars, threads);
     cfg.seed = seed;
     World::start(&cfg).expect("world starts")
 }
@@ -83,12 +80,18 @@ fn world_profiled(
     threads: usize,
     profile_cars: Vec<u8>,
 ) -> World {
+    let mut cfg = config(engine, cars, threads);
+    cfg.profile_cars = profile_cars;
+    World::start(&cfg).expect("world starts")
+}
+
+/// The benchmarks' world: `cars` on `engine`'s default firmware, stepped by `threads`.
+fn config(engine: EngineKind, cars: Vec<CarSpec>, threads: usize) -> WorldConfig {
     let elf = engine.default_firmware().expect("firmware ELF");
     let mut cfg = WorldConfig::new(elf, cars);
     cfg.engine = engine;
     cfg.threads = threads;
-    cfg.profile_cars = profile_cars;
-    World::start(&cfg).expect("world starts")
+    cfg
 }
 
 /// Polls every car until its program runs with a valid pose; the number that did.

@@ -214,7 +214,7 @@ struct TestCounts {
     failures: Vec<Failure>,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct Failure {
     name: String,
     excerpt: Vec<String>,
@@ -224,11 +224,11 @@ struct Failure {
 const EXCERPT_LINES: usize = 8;
 
 impl TestCounts {
-    fn add(&mut self, other: &TestCounts) {
+    fn add(&mut self, other: TestCounts) {
         self.passed += other.passed;
         self.failed += other.failed;
         self.ignored += other.ignored;
-        self.failures.extend(other.failures.iter().cloned());
+        self.failures.extend(other.failures);
     }
 
     /// Reads libtest's `test result: ok. 12 passed; 0 failed; 1 ignored; ...` line.
@@ -301,7 +301,7 @@ fn run_counting(cmd: &mut Command) -> Result<(TestCounts, std::process::ExitStat
         println!("{line}");
         failures.line(&line);
         if let Some(c) = TestCounts::parse_line(&line) {
-            counts.add(&c);
+            counts.add(c);
         }
     }
     failures.finish();
@@ -314,14 +314,16 @@ fn run_counting(cmd: &mut Command) -> Result<(TestCounts, std::process::ExitStat
 /// summary names its failed tests), then fails if the run did.
 fn tally(run: (TestCounts, std::process::ExitStatus), totals: &mut TestCounts) -> Result<String> {
     let (counts, status) = run;
-    totals.add(&counts);
-    if !status.success() {
-        bail!("cargo test failed ({status}): {} failed", counts.failed);
-    }
-    Ok(format!(
+    let note = format!(
         "{} passed, {} failed, {} ignored",
         counts.passed, counts.failed, counts.ignored
-    ))
+    );
+    let failed = counts.failed;
+    totals.add(counts);
+    if !status.success() {
+        bail!("cargo test failed ({status}): {failed} failed");
+    }
+    Ok(note)
 }
 
 /// Runs each fuzz target for a few seconds with cargo-fuzz on the nightly toolchain.
