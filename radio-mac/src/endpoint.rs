@@ -287,6 +287,9 @@ pub struct Stats {
     pub heartbeats_sent: u32,
     /// State broadcasts left out in ground frames (see `schedule::GROUND_FRAME_EVERY`).
     pub ground_frames_kept: u32,
+    /// State broadcasts left out because the channel ran behind just before their slot (see
+    /// `schedule::LATE_YIELD_US`).
+    pub states_yielded: u32,
 }
 
 impl core::ops::AddAssign for Stats {
@@ -326,6 +329,7 @@ impl core::ops::AddAssign for Stats {
             states_sent,
             heartbeats_sent,
             ground_frames_kept,
+            states_yielded,
         } = other;
         self.rx_frames = self.rx_frames.wrapping_add(rx_frames);
         self.rx_oversize = self.rx_oversize.wrapping_add(rx_oversize);
@@ -359,6 +363,7 @@ impl core::ops::AddAssign for Stats {
         self.states_sent = self.states_sent.wrapping_add(states_sent);
         self.heartbeats_sent = self.heartbeats_sent.wrapping_add(heartbeats_sent);
         self.ground_frames_kept = self.ground_frames_kept.wrapping_add(ground_frames_kept);
+        self.states_yielded = self.states_yielded.wrapping_add(states_yielded);
     }
 }
 
@@ -1109,6 +1114,13 @@ impl<const N: usize> Endpoint<N> {
             self.hello_soon = None;
             self.hello(now, HELLO_GAP_US);
         }
+    }
+
+    /// When the next state broadcast is due to be written (its slot's start less the send
+    /// lead), if this node broadcasts its state on a schedule.
+    pub fn next_state_due(&mut self, now: u64) -> Option<u64> {
+        self.state?;
+        Some(self.schedule.as_mut()?.next_due(now))
     }
 
     /// Earliest time at which [`Endpoint::poll`] has work to do.

@@ -172,6 +172,13 @@ impl CarMac {
         self.ep.poll_at(now)
     }
 
+    /// When the next state broadcast is due to be written to the radio (see
+    /// [`CarMac::state_written`]): a program busy when it comes (handling a batch of input)
+    /// can look at its clock as it goes and poll then, so the broadcast keeps its slot.
+    pub fn next_state_due(&mut self, now: u64) -> Option<u64> {
+        self.ep.next_state_due(now)
+    }
+
     /// Bytes for the radio UART.
     pub fn transmit(&mut self, buf: &mut [u8]) -> usize {
         self.ep.transmit(buf)

@@ -38,6 +38,12 @@ pub const OUTLIER_US: u64 = 200;
 /// Consecutive outliers after which the phase jumps to the new estimate.
 pub const OUTLIERS_TO_JUMP: u8 = 4;
 
+/// A state frame heard this much later than its slot's phase (on the schedule this car
+/// follows), from the slot three before this car's, makes this car leave out its next
+/// broadcast while every slot is taken, in microseconds: the channel is running behind, and the
+/// slot left free lets it catch up (see [`Schedule::heard_state`]).
+pub const LATE_YIELD_US: u64 = 400;
+
 /// Consecutive disagreeing frames after which a car with nobody to follow adopts their phase.
 pub const ROOT_YIELD: u8 = 8;
 
@@ -146,6 +152,8 @@ pub struct Schedule {
     ref_frame: Option<(u8, u64)>,
     /// How much earlier than its slot's start a broadcast is due, in 1/16 microseconds.
     lead_x16: u32,
+    /// The start of an own slot left free because the channel ran behind before it.
+    yield_slot: Option<u64>,
 }
 
 impl Schedule {
@@ -180,6 +188,7 @@ impl Schedule {
             last_target: None,
             ref_frame: None,
             lead_x16: 0,
+            yield_slot: None,
         }
     }
 
@@ -232,13 +241,67 @@ impl Schedule {
     }
 
     /// A state broadcast from `src` with sequence number `seq` finished arriving at `now`.
+    ///
+    /// On a schedule that follows the lowest car, the frame of the slot three before this
+    /// car's (the last to arrive before this car writes: a state frame reaches the other cars
+    /// [`DEFAULT_STATE_LATENCY_US`], 2.3 slots, after its slot's start) arriving more than
+    /// [`LATE_YIELD_US`] late means the channel is running behind: a broadcast written late,
+    /// or one the radio deferred, pushes every later one back, and on a full channel (16 cars)
+    /// the delay would not drain. This car's next slot is then marked ([`Schedule::yields`]);
+    /// the endpoint leaves the broadcast out when every slot is taken, so the channel is free
+    /// for one slot and catches up.
     pub fn heard_state(&mut self, now: u64, src: CarId, seq: u8, stale_after_us: u64) {
+        self.note_late(now, src);
         self.follow(now, src, stale_after_us);
         if self.reference.map(|(r, _)| r) == Some(src) {
             let back =
                 u64::from(self.latency_us()) + u64::from(default_slot(src)) * u64::from(SLOT_US);
             self.ref_frame = Some((seq, now.saturating_sub(back)));
         }
+    }
+
+    fn note_late(&mut self, now: u64, src: CarId) {
+        let StateTiming::Slotted {
+            slot,
+            time_base: TimeBase::FollowLowest { latency_us },
+        } = self.timing
+        else {
+            return;
+        };
+        if self.own.is_none() || !self.locked {
+            return;
+        }
+        // Only the last frame to arrive before this car writes: from the slot as many slots
+        // back as the pipeline is long, plus one.
+        let back = latency_us / SLOT_US + 1;
+        if (u32::from(slot % SLOTS) + u32::from(SLOTS) - u32::from(default_slot(src)))
+            % u32::from(SLOTS)
+            != back
+        {
+            return;
+        }
+        let mine = match self.next_tx {
+            Some(t) if t > now => t,
+            _ => self.next_slot_start(now),
+        };
+        // When that frame should have arrived (for this car's next slot's frame period).
+        let expected = (mine + u64::from(latency_us)).saturating_sub(u64::from(back * SLOT_US));
+        if now > expected + LATE_YIELD_US && mine > now + self.send_lead_us() {
+            self.yield_slot = Some(mine);
+        }
+    }
+
+    /// Whether the broadcast for the slot starting at `slot_start` is left out because the
+    /// channel ran behind just before it (see [`Schedule::heard_state`]).
+    pub fn yields(&self, slot_start: u64) -> bool {
+        // The phase may have moved a little since (the frame that was late adjusts it).
+        self.yield_slot
+            .is_some_and(|y| y.abs_diff(slot_start) < u64::from(SLOT_US) / 2)
+    }
+
+    /// The slot start the broadcast due now aims at, once [`Schedule::next_due`] has set it.
+    pub fn target(&self) -> Option<u64> {
+        self.next_tx
     }
 
     fn latency_us(&self) -> u32 {
@@ -506,6 +569,88 @@ mod tests {
             s.heard_state(t0 + k * f + 3_000, id(5), 0, 1_000_000);
         }
         assert_eq!(s.next_due(t0 + 20 * f) % f, (epoch + 3_000) % f);
+    }
+
+    #[test]
+    fn a_late_frame_just_before_the_slot_leaves_the_slot_free() {
+        let f = u64::from(FRAME_US);
+        let slot = u64::from(SLOT_US);
+        let lat = u64::from(DEFAULT_STATE_LATENCY_US);
+        // Car 8 (slot 7) follows car 1, whose frame sets slot 0 of the frame at `epoch`.
+        let epoch = 100 * f;
+        let mut s = Schedule::new(id(8), StateTiming::slotted(id(8)));
+        s.heard_state(epoch + lat, id(1), 0, 1_000_000);
+        let mine = epoch + 7 * slot;
+        assert_eq!(s.next_due(epoch + lat), mine);
+        // Car 5 (slot 4, three before) on time, then 100 us late: nothing changes.
+        for late in [0, 100] {
+            s.heard_state(epoch + 4 * slot + lat + late, id(5), 0, 1_000_000);
+            assert!(!s.yields(mine), "late by {late} us");
+        }
+        // 500 us late: the channel runs behind, the slot is left free (the target may move
+        // by the phase's own small corrections).
+        s.heard_state(epoch + 4 * slot + lat + 500, id(5), 0, 1_000_000);
+        assert!(s.yields(mine));
+        assert!(s.yields(mine + 10));
+        // Only that slot: the next frame's is used again.
+        assert!(!s.yields(mine + f));
+
+        // A late frame from further back (car 2, slot 1) or from the slot just before (car 7,
+        // heard after this car has written) does not count.
+        let mut s = Schedule::new(id(8), StateTiming::slotted(id(8)));
+        s.heard_state(epoch + lat, id(1), 0, 1_000_000);
+        s.heard_state(epoch + slot + lat + 500, id(2), 0, 1_000_000);
+        s.heard_state(epoch + 6 * slot + lat + 500, id(7), 0, 1_000_000);
+        assert!(!s.yields(mine));
+        assert!(!s.yields(mine + f));
+    }
+
+    #[test]
+    fn a_car_yields_only_on_a_full_channel_and_counts_it() {
+        use crate::{CarConfig, CarMac, CarState};
+        let f = u64::from(FRAME_US);
+        let slot = u64::from(SLOT_US);
+        let lat = u64::from(DEFAULT_STATE_LATENCY_US);
+        let epoch = 100 * f;
+        let frame = |src: u8| {
+            let mut buf = [0u8; 64];
+            let n = crate::wire::Frame::State {
+                src: id(src),
+                seq: 0,
+                state: CarState::default(),
+            }
+            .encode(&mut buf)
+            .unwrap();
+            buf[..n].to_vec()
+        };
+        // Car 8 hears `others` on time in the frame before, then car 1 and, 500 us late, car 5
+        // (three slots before its own); the states it sends and leaves out in its slot.
+        let run = |others: &[u8]| {
+            let mut mac = CarMac::new(CarConfig::new(id(8)));
+            mac.set_state(CarState::default());
+            for &c in others {
+                mac.push_rx(epoch - f + u64::from(c - 1) * slot + lat, &frame(c));
+            }
+            mac.push_rx(epoch + lat, &frame(1));
+            mac.push_rx(epoch + 4 * slot + lat + 500, &frame(5));
+            let due = mac.next_state_due(epoch + 4 * slot + lat + 500).unwrap();
+            mac.poll(due);
+            let in_slot = (mac.stats().states_sent, mac.stats().states_yielded);
+            // The next frame's slot is used again.
+            let due = mac.next_state_due(due + 1).unwrap();
+            assert!(due > epoch + f);
+            mac.poll(due);
+            (in_slot, mac.stats().states_sent)
+        };
+        let all: Vec<u8> = (1..=16).filter(|&c| c != 8).collect();
+        assert_eq!(
+            run(&all),
+            ((0, 1), 1),
+            "full channel: the slot is left free"
+        );
+        // With a free slot the channel catches up by itself: the car sends as usual.
+        let all_but_one: Vec<u8> = (1..=15).filter(|&c| c != 8).collect();
+        assert_eq!(run(&all_but_one), ((1, 0), 2));
     }
 
     #[test]

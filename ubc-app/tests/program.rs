@@ -858,3 +858,100 @@ fn forged_replayed_or_foreign_heartbeats_do_not_keep_the_user_link() {
     s.run_ms(1_500);
     assert_eq!(s.logged(|e| *e == LogEvent::UserLinkRestored), 1);
 }
+
+/// A clock that moves on by `step` microseconds at every reading (a poll that takes time).
+struct SlowClock {
+    t: std::cell::Cell<u64>,
+    step: u64,
+}
+
+impl ubc_app::program::Clock for SlowClock {
+    fn now_us(&self) -> u64 {
+        let t = self.t.get();
+        self.t.set(t + self.step);
+        t
+    }
+}
+
+/// A radio port holding whole frames, each read on its own with its arrival time; records
+/// how many were still unread when the program first wrote.
+struct FramePort {
+    frames: std::collections::VecDeque<Vec<u8>>,
+    arrived: u64,
+    tx: Vec<u8>,
+    unread_at_first_write: Option<usize>,
+}
+
+impl ubc_app::program::BytePort for FramePort {
+    fn read(&mut self, buf: &mut [u8]) -> usize {
+        self.read_frame(buf).0
+    }
+
+    fn read_frame(&mut self, buf: &mut [u8]) -> (usize, Option<u64>) {
+        match self.frames.pop_front() {
+            Some(f) => {
+                buf[..f.len()].copy_from_slice(&f);
+                (f.len(), Some(self.arrived))
+            }
+            None => (0, None),
+        }
+    }
+
+    fn write(&mut self, bytes: &[u8]) -> usize {
+        self.unread_at_first_write.get_or_insert(self.frames.len());
+        self.tx.extend_from_slice(bytes);
+        bytes.len()
+    }
+}
+
+#[test]
+fn a_state_broadcast_due_during_a_long_poll_leaves_on_time() {
+    let mut s = Sim::new();
+    s.bring_up();
+    s.run_ms(300);
+    // Up to about a millisecond before the car's next state broadcast is due.
+    let due = loop {
+        s.step();
+        let due = s
+            .prog
+            .next_state_due(s.now)
+            .expect("the car broadcasts its state");
+        if (600..1_600).contains(&(due - s.now)) {
+            break due;
+        }
+    };
+    // A poll with twelve radio frames waiting (other cars' heartbeats, which leave the slot
+    // schedule alone), each taking 150 us to handle.
+    let frames = (1..=12u8)
+        .map(|id| {
+            let mut buf = [0u8; 64];
+            let n = radio_mac::wire::Frame::Heartbeat {
+                src: Address::Car(CarId::new(id + 20).unwrap()),
+                beat: radio_mac::wire::Heartbeat::default(),
+            }
+            .encode(&mut buf)
+            .unwrap();
+            buf[..n].to_vec()
+        })
+        .collect();
+    let mut radio = FramePort {
+        frames,
+        arrived: s.now,
+        tx: Vec::new(),
+        unread_at_first_write: None,
+    };
+    let clock = SlowClock {
+        t: std::cell::Cell::new(s.now),
+        step: 150,
+    };
+    let sent = s.prog.radio_stats().unwrap().states_sent;
+    s.prog.poll(&clock, &mut s.lbc_port, &mut radio, &mut s.log);
+    assert_eq!(s.prog.radio_stats().unwrap().states_sent, sent + 1);
+    // It went out between the frames, not after all of them.
+    let unread = radio.unread_at_first_write.expect("written");
+    assert!(unread > 0, "written only after every frame was handled");
+    // At most one frame's handling (one clock step) after it fell due.
+    assert!(clock.t.get() > due);
+    let frames_read = 12 - unread;
+    assert!(frames_read <= 8, "{frames_read} frames handled first");
+}

@@ -11,6 +11,11 @@ impl<const N: usize> Endpoint<N> {
         let around = self
             .ground_heard
             .is_some_and(|t| now.saturating_sub(t) <= GROUND_AROUND_US);
+        (around || self.own == Address::Ground) && self.every_slot_taken(now)
+    }
+
+    /// Whether every slot of the frame is taken by a fresh car (this one included).
+    fn every_slot_taken(&self, now: u64) -> bool {
         let mut used: u32 = match self.own {
             Address::Car(id) => 1 << crate::schedule::default_slot(id),
             _ => 0,
@@ -20,7 +25,7 @@ impl<const N: usize> Endpoint<N> {
                 used |= 1 << crate::schedule::default_slot(id);
             }
         }
-        (around || self.own == Address::Ground) && used == (1 << crate::schedule::SLOTS) - 1
+        used == (1 << crate::schedule::SLOTS) - 1
     }
 
     pub(super) fn poll_state(&mut self, now: u64) {
@@ -28,7 +33,6 @@ impl<const N: usize> Endpoint<N> {
             return;
         };
         let stale = self.stale_after_us;
-        let ground_frames = self.ground_frames_on(now);
         let Some(s) = self.schedule.as_mut() else {
             return;
         };
@@ -37,6 +41,16 @@ impl<const N: usize> Endpoint<N> {
         if due > now {
             return;
         }
+        // Looked at only when a broadcast is due (each scans the neighbour table).
+        let ground_frames = self.ground_frames_on(now);
+        let yields = self
+            .schedule
+            .as_ref()
+            .is_some_and(|s| s.target().is_some_and(|t| s.yields(t)))
+            && self.every_slot_taken(now);
+        let Some(s) = self.schedule.as_mut() else {
+            return;
+        };
         let slot = s.own_slot();
         if ground_frames && slot < crate::schedule::GROUND_SLOTS {
             // The frame's number: the reference's count, or this car's own as slot 0's car.
@@ -55,6 +69,13 @@ impl<const N: usize> Endpoint<N> {
                 self.stats.ground_frames_kept += 1;
                 return;
             }
+        }
+        if yields {
+            // The channel ran behind before this slot, and with every slot taken it has no
+            // idle time to catch up in: leave this slot free.
+            s.sent(now);
+            self.stats.states_yielded += 1;
+            return;
         }
         s.sent(now);
         let frame = Frame::State {

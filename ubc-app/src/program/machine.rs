@@ -254,6 +254,27 @@ fn outcome(failure: &Failure, command: &Command) -> LbcOutcome {
     }
 }
 
+/// How close to a poll's start its state broadcast must be due for the poll to look at the
+/// clock between its inputs and send the broadcast when it comes, in microseconds: a poll
+/// with many inputs (a batch of radio frames, an authenticated ground frame, the control law)
+/// can take this long, and on a full channel a broadcast written more than about 0.35 ms late
+/// pushes every later one back (`docs/radio-protocol.md`, "Keeping the slot").
+pub const STATE_WATCH_US: u64 = 2_000;
+
+/// When a radio frame read in a poll that began at `now` counts as heard: when its delimiter
+/// arrived, if the port knows (`end_us`), else `now`. A frame that ended after the poll began
+/// (while it ran) keeps its own time, bounded by the clock (`clock_now`, read only then):
+/// taking it as heard at `now` would date it early, and the slot schedule follows those times
+/// (a follower whose reference's frames are dated early writes its own early, into the slot
+/// before).
+fn heard_at(end_us: Option<u64>, now: u64, clock_now: impl FnOnce() -> u64) -> u64 {
+    match end_us {
+        Some(t) if t > now => t.min(clock_now()),
+        Some(t) => t,
+        None => now,
+    }
+}
+
 impl Program {
     /// A program that starts bringing the LBC up at its first poll.
     #[must_use]
@@ -467,17 +488,15 @@ impl Program {
         }
         // The radio first: a state broadcast due now goes to the UART before any input is
         // looked at, and the schedule learns how long that took (its slot timing).
-        if let Some(m) = self.mac.as_mut() {
-            let sent = m.stats().states_sent;
-            m.poll(now);
-            if m.stats().states_sent != sent {
-                self.flush_radio(radio);
-                let at = clock.now_us();
-                if let Some(m) = self.mac.as_mut() {
-                    m.state_written(at);
-                }
-            }
-        }
+        self.send_state(now, clock, radio);
+        // One due while this poll runs goes out between the inputs, on time (see
+        // `STATE_WATCH_US`).
+        let mut state_due = self
+            .mac
+            .as_mut()
+            .and_then(|m| m.next_state_due(now))
+            .filter(|&d| d > now && d - now <= STATE_WATCH_US);
+        let mut now = now;
         let mut buf = [0u8; 64];
         let mut budget = RX_BUDGET;
         while budget > 0 {
@@ -487,6 +506,7 @@ impl Program {
                 break;
             }
             budget -= n;
+            self.state_if_due(&mut state_due, &mut now, clock, radio);
             // One message at most per call, so its events all fit (see `feed_lbc`).
             for part in buf
                 .get(..n)
@@ -506,8 +526,8 @@ impl Program {
                 break;
             }
             budget -= n;
-            // A frame is taken as heard when its delimiter arrived, if the port knows when.
-            let at = end_us.map_or(now, |t| t.min(now));
+            self.state_if_due(&mut state_due, &mut now, clock, radio);
+            let at = heard_at(end_us, now, || clock.now_us());
             match self.mac.as_mut() {
                 Some(m) => m.push_rx(at, buf.get(..n).unwrap_or(&buf)),
                 None => self.counters.radio_rx_dropped += n as u32,
@@ -519,6 +539,7 @@ impl Program {
         while let Some(ev) = self.mac.as_mut().and_then(CarMac::next_event) {
             self.on_radio(now, ev, log);
         }
+        self.state_if_due(&mut state_due, &mut now, clock, radio);
         self.timers(now, log);
         if U::PRESENT {
             self.run_user(now, program, log);
@@ -526,6 +547,51 @@ impl Program {
         // Commands queued by the handlers above go out in this same poll.
         self.feed_lbc(now, &[], log);
         self.flush(lbc, radio);
+    }
+
+    /// When the car's next state broadcast is due to be written (same clock), once its radio
+    /// is up and it has a state to send.
+    pub fn next_state_due(&mut self, now_us: u64) -> Option<u64> {
+        self.mac.as_mut()?.next_state_due(now_us)
+    }
+
+    /// Polls the radio at `now` and, when that queued the state broadcast, writes it to the
+    /// radio UART at once and tells the schedule when the write began.
+    fn send_state<C, R>(&mut self, now: u64, clock: &C, radio: &mut R)
+    where
+        C: Clock + ?Sized,
+        R: BytePort + ?Sized,
+    {
+        let Some(m) = self.mac.as_mut() else {
+            return;
+        };
+        let sent = m.stats().states_sent;
+        m.poll(now);
+        if m.stats().states_sent != sent {
+            self.flush_radio(radio);
+            let at = clock.now_us();
+            if let Some(m) = self.mac.as_mut() {
+                m.state_written(at);
+            }
+        }
+    }
+
+    /// Between the inputs of a poll: when the state broadcast `due` (set while it is near) has
+    /// come, sends it and moves the poll's time `now` on to the clock's.
+    fn state_if_due<C, R>(&mut self, due: &mut Option<u64>, now: &mut u64, clock: &C, radio: &mut R)
+    where
+        C: Clock + ?Sized,
+        R: BytePort + ?Sized,
+    {
+        let Some(d) = *due else {
+            return;
+        };
+        let t = clock.now_us();
+        if t >= d {
+            *due = None;
+            *now = t.max(*now);
+            self.send_state(*now, clock, radio);
+        }
     }
 
     /// The time (same clock) at which [`Program::poll`] next has work without new bytes.
@@ -1380,5 +1446,24 @@ impl Program {
             }
             self.radio_tx_pos += n;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::heard_at;
+
+    #[test]
+    fn a_frame_is_heard_when_its_delimiter_arrived() {
+        let never = || panic!("the clock is read only for a frame that ended after `now`");
+        // Ended before the poll began: its own time.
+        assert_eq!(heard_at(Some(900), 1_000, never), 900);
+        assert_eq!(heard_at(Some(1_000), 1_000, never), 1_000);
+        // No stamp: the poll's time.
+        assert_eq!(heard_at(None, 1_000, never), 1_000);
+        // Ended while the poll ran: its own time, not the poll's start.
+        assert_eq!(heard_at(Some(1_250), 1_000, || 1_300), 1_250);
+        // A stamp beyond the clock is bounded by it.
+        assert_eq!(heard_at(Some(5_000), 1_000, || 1_300), 1_300);
     }
 }
