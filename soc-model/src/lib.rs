@@ -314,9 +314,50 @@ pub(crate) struct SharedCode {
     /// The decoded instruction starting at each RAM halfword (see `fast`), 0 outside
     /// `first..end`.
     pub(crate) ops: Box<[u64]>,
+    /// The code's instructions in address order, as a sweep from `first` finds them (each
+    /// the next one's predecessor in memory), then a 0 ("not here").
+    pub(crate) line: Box<[u64]>,
+    /// Per halfword of `first..end`: the index in `line` of the instruction starting there,
+    /// or [`SharedCode::OFF_LINE`] where none of the sweep starts.
+    pub(crate) at: Box<[u32]>,
 }
 
 impl SharedCode {
+    /// An index of `at` for a halfword where no instruction of the sweep starts.
+    pub(crate) const OFF_LINE: u32 = u32::MAX;
+
+    fn new(first: usize, end: usize, ops: Box<[u64]>) -> Self {
+        let mut line = Vec::with_capacity(end.saturating_sub(first) / 2 + 1);
+        let mut at = vec![Self::OFF_LINE; end.saturating_sub(first)].into_boxed_slice();
+        let mut h = first;
+        while h < end {
+            let op = ops[h];
+            if let Some(slot) = at.get_mut(h - first) {
+                *slot = u32::try_from(line.len()).unwrap_or(Self::OFF_LINE);
+            }
+            line.push(op);
+            h += ((op >> 32) as usize / 2).max(1);
+        }
+        line.push(0);
+        SharedCode {
+            first,
+            end,
+            ops,
+            line: line.into_boxed_slice(),
+            at,
+        }
+    }
+
+    /// The index in `line` of the instruction at `pc`, or [`SharedCode::OFF_LINE`].
+    #[inline(always)]
+    pub(crate) fn line_at(&self, pc: u32) -> u32 {
+        let h = (pc.wrapping_sub(RAM_BASE) >> 1) as usize;
+        self.at
+            .get(h.wrapping_sub(self.first))
+            .copied()
+            .unwrap_or(Self::OFF_LINE)
+    }
+
     /// Whether a store into RAM word `i` changes an instruction this holds (the word's two
     /// halfwords, or a 32-bit instruction starting in the halfword before them).
     pub(crate) fn covers_word(&self, i: usize) -> bool {
@@ -511,7 +552,7 @@ impl Soc {
                 let off = (h * 2) as u32;
                 *op = fast::decode_at(exec::fetch_ram(&self.ram, off), RAM_BASE.wrapping_add(off));
             }
-            std::sync::Arc::new(SharedCode { first, end, ops })
+            std::sync::Arc::new(SharedCode::new(first, end, ops))
         });
         Ok(())
     }

@@ -984,3 +984,34 @@ fn shared_code_untraced_in_odd_slices_runs_like_the_traced_private_run() {
         assert_eq!(shared.pc, private.pc, "seed {seed}");
     }
 }
+
+#[test]
+fn a_jump_into_the_middle_of_a_shared_instruction_runs_what_is_there() {
+    // The upper half of a `lui` is a compressed `addi a0, a0, 1`: the executor's line of the
+    // code (a sweep from its start) holds the `lui`, so a jump to its middle leaves the line
+    // and must still run the compressed instruction there, then the rest. The second pass
+    // runs the `lui` itself.
+    let mut p = P::default();
+    p.li(A0, 0).li(A2, 0);
+    p.i(isa::jal(0, 6));
+    let w = p.here();
+    let half = u32::from(isa::c::addi(A0, 1));
+    p.i(half << 16 | 11 << 7 | 0x37); // lui a1, (half << 4 | 0)
+    p.i(isa::addi(A0, A0, 10));
+    p.i(isa::addi(A2, A2, 1));
+    p.i(isa::addi(T1, 0, 2));
+    let back = p.off(w);
+    p.i(isa::blt(A2, T1, back));
+    p.exit_pass();
+    let mut private = p.soc();
+    let (want_out, _, want_halt) = run_all(&mut private, 10_000);
+    assert_eq!(want_halt, Some(Halt::Exit { value: 0x5555 }));
+    assert_eq!(private.reg(10), 21, "1 off the line, then 10 on each pass");
+    assert_eq!(private.reg(11), half << 16);
+    let mut shared = elf_soc(&p);
+    let mut out = Vec::new();
+    let halt = shared.run_until(10_000, &mut out);
+    assert_eq!((halt, out), (want_halt, want_out));
+    assert_eq!(shared.stats(), private.stats());
+    assert_eq!(&shared.x[..32], &private.x[..32]);
+}

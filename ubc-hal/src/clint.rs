@@ -24,17 +24,78 @@ struct Conversion {
 /// The machine timer and the rate `mtime` counts at.
 ///
 /// [`Clint::micros`] converts incrementally from its previous answer with one 32-bit
-/// multiply and divide (`1e6 / hz` as a reduced fraction `num / den`), exactly; only a jump
-/// of more than a few hundred milliseconds since the last call takes the 64-bit division.
-/// On the soft core a 64-bit division is a software loop of several hundred cycles, and the
-/// program reads the time many times per loop.
+/// multiply and a division by a constant (`1e6 / hz` as a reduced fraction `num / den`),
+/// exactly; only a jump of more than a few hundred milliseconds since the last call takes the
+/// 64-bit division. On the soft core a 64-bit division is a software loop of several hundred
+/// cycles and a 32-bit one 34 cycles, and the program reads the time many times per loop, so
+/// the divisions by `num` and `den` are multiplications ([`Divider`]).
 #[derive(Debug)]
 pub struct Clint<B> {
     bus: B,
     hz: u32,
-    num: u32,
-    den: u32,
+    num: Divider,
+    den: Divider,
     last: Cell<Conversion>,
+}
+
+/// Division of any `u32` by a divisor fixed in advance, exactly, with a multiplication
+/// (the high word of a 32 x 32-bit product), a subtraction, an addition and two shifts: the
+/// round-up method of Granlund and Montgomery ("Division by invariant integers using
+/// multiplication", 1994, figure 4.1). The constants are worked out in a `const fn`, so a
+/// board's timer has them at compile time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Divider {
+    d: u32,
+    m: u32,
+    sh1: u8,
+    sh2: u8,
+}
+
+impl Divider {
+    /// Division by `d` (0 is taken as 1).
+    pub const fn new(d: u32) -> Self {
+        let d = if d == 0 { 1 } else { d };
+        // l = ceil(log2 d), 0..=32
+        let l = 32 - (d - 1).leading_zeros();
+        // m = floor(2^32 (2^l - d) / d) + 1 < 2^32; the product is below 2^64 for l <= 32.
+        let m = ((1u64 << 32) * ((1u64 << l) - d as u64) / d as u64 + 1) as u32;
+        Self {
+            d,
+            m,
+            sh1: if l > 0 { 1 } else { 0 },
+            sh2: if l > 0 { (l - 1) as u8 } else { 0 },
+        }
+    }
+
+    /// The divisor.
+    pub const fn divisor(&self) -> u32 {
+        self.d
+    }
+
+    /// `n / d`.
+    #[inline]
+    pub const fn div(&self, n: u32) -> u32 {
+        let t = ((n as u64 * self.m as u64) >> 32) as u32;
+        (t + ((n - t) >> self.sh1)) >> self.sh2
+    }
+
+    /// `(n / d, n % d)`.
+    #[inline]
+    pub const fn div_rem(&self, n: u32) -> (u32, u32) {
+        let q = self.div(n);
+        (q, n - q * self.d)
+    }
+
+    /// `n / d` rounded up.
+    #[inline]
+    pub const fn div_ceil(&self, n: u32) -> u32 {
+        let (q, r) = self.div_rem(n);
+        if r > 0 {
+            q + 1
+        } else {
+            q
+        }
+    }
 }
 
 const fn gcd(mut a: u32, mut b: u32) -> u32 {
@@ -79,8 +140,8 @@ impl<B: RegisterBus> Clint<B> {
         Self {
             bus,
             hz: rate.hz,
-            num: rate.num,
-            den: rate.den,
+            num: Divider::new(rate.num),
+            den: Divider::new(rate.den),
             last: Cell::new(Conversion {
                 ticks: 0,
                 micros: 0,
@@ -119,22 +180,19 @@ impl<B: RegisterBus> Clint<B> {
     /// `ticks` in microseconds, from the previous conversion when it is close.
     fn micros_at(&self, ticks: u64) -> u64 {
         let last = self.last.get();
-        let step_max = u64::from(u32::MAX.saturating_sub(self.den) / self.num.max(1));
+        let (num, den) = (self.num.divisor(), self.den.divisor());
+        let step_max = u64::from(self.num.div(u32::MAX.saturating_sub(den)));
         let m = match ticks.checked_sub(last.ticks) {
             Some(d) if d <= step_max => {
                 // d * num + rem < 2^32 by the bound on d.
-                let x = d as u32 * self.num + last.rem;
-                self.last.set(Conversion {
-                    ticks,
-                    micros: last.micros + u64::from(x / self.den),
-                    rem: x % self.den,
-                });
-                return last.micros + u64::from(x / self.den);
+                let (q, rem) = self.den.div_rem(d as u32 * num + last.rem);
+                let micros = last.micros + u64::from(q);
+                self.last.set(Conversion { ticks, micros, rem });
+                return micros;
             }
             _ => ticks_to_micros(ticks, self.hz),
         };
-        let rem =
-            ((ticks % u64::from(self.den)) * u64::from(self.num) % u64::from(self.den)) as u32;
+        let rem = ((ticks % u64::from(den)) * u64::from(num) % u64::from(den)) as u32;
         self.last.set(Conversion {
             ticks,
             micros: m,
@@ -164,8 +222,11 @@ impl<B: RegisterBus> Clint<B> {
         let Some(d) = us.checked_sub(last.micros) else {
             return last.ticks;
         };
-        if let Some(need) = u32::try_from(d).ok().and_then(|d| d.checked_mul(self.den)) {
-            return last.ticks + u64::from(need.saturating_sub(last.rem).div_ceil(self.num));
+        if let Some(need) = u32::try_from(d)
+            .ok()
+            .and_then(|d| d.checked_mul(self.den.divisor()))
+        {
+            return last.ticks + u64::from(self.num.div_ceil(need.saturating_sub(last.rem)));
         }
         let t = micros_to_ticks(us, self.hz);
         if ticks_to_micros(t, self.hz) < us {
@@ -187,9 +248,9 @@ impl<B: RegisterBus> Clint<B> {
         }
         let last = self.last.get();
         // micros(now - age) = floor((now_us * den + rem - age * num) / den).
-        match age.checked_mul(self.num) {
+        match age.checked_mul(self.num.divisor()) {
             Some(a) if a <= last.rem => now_us,
-            Some(a) => now_us.saturating_sub(u64::from((a - last.rem).div_ceil(self.den))),
+            Some(a) => now_us.saturating_sub(u64::from(self.den.div_ceil(a - last.rem))),
             None => ticks_to_micros(now - u64::from(age), self.hz),
         }
     }
@@ -278,7 +339,38 @@ mod tests {
         assert_eq!(micros_to_ticks(1_000_000, 32_768), 32_768);
     }
 
+    #[test]
+    fn dividers_at_the_edges() {
+        for d in [
+            1,
+            2,
+            3,
+            7,
+            625,
+            9216,
+            1 << 31,
+            (1 << 31) + 1,
+            u32::MAX - 1,
+            u32::MAX,
+        ] {
+            let div = Divider::new(d);
+            for n in [0, 1, d - 1, d, d.wrapping_add(1), u32::MAX - 1, u32::MAX] {
+                assert_eq!(div.div_rem(n), (n / d, n % d), "{n} / {d}");
+                assert_eq!(div.div_ceil(n), n.div_ceil(d), "{n} / {d} up");
+            }
+        }
+        assert_eq!(Divider::new(0).div(12), 12, "0 is taken as 1");
+    }
+
     proptest! {
+        #[test]
+        fn dividers_divide_exactly(n in any::<u32>(), d in prop_oneof![1u32..100_000, any::<u32>()]) {
+            let d = d.max(1);
+            let div = Divider::new(d);
+            prop_assert_eq!(div.div_rem(n), (n / d, n % d));
+            prop_assert_eq!(div.div_ceil(n), n.div_ceil(d));
+        }
+
         #[test]
         fn wakeup_ticks_are_the_first_at_the_deadline(
             start in 0u64..(1 << 48),

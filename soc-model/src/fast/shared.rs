@@ -31,6 +31,7 @@ impl Soc {
         let Ok(table) = <&[u64; RAM_HALVES]>::try_from(&code.ops[..]) else {
             return Burst::Slow;
         };
+        let line = &code.line[..];
         let start_at = self.core_at;
         let mut left = deadline.saturating_sub(start_at);
         let mut pc = self.pc;
@@ -42,15 +43,23 @@ impl Soc {
             return Burst::Slow;
         };
         let x: &mut [u32; 64] = x;
+        // Where `pc` is in the code's line: the next instruction in memory is the next one
+        // there, an address the host can fetch before this one's length is known.
+        let mut i = code.line_at(pc) as usize;
         let result = loop {
             if left == 0 {
                 break Burst::Deadline;
             }
-            let off = pc.wrapping_sub(RAM_BASE);
-            if off >= RAM_SIZE {
-                break Burst::Slow;
-            }
-            let op64 = table[(off >> 1) as usize & (RAM_HALVES - 1)];
+            let op64 = match line.get(i) {
+                Some(&op) => op,
+                None => {
+                    let off = pc.wrapping_sub(RAM_BASE);
+                    if off >= RAM_SIZE {
+                        break Burst::Slow;
+                    }
+                    table[(off >> 1) as usize & (RAM_HALVES - 1)]
+                }
+            };
             if op64 == 0 {
                 break Burst::Slow;
             }
@@ -61,7 +70,8 @@ impl Soc {
             let rs2 = ((op >> 16) & 31) as usize;
             let imm = ((op as i32) >> 20) as u32;
             let a = x[rs1];
-            let mut next = pc.wrapping_add((op64 >> 32) as u32);
+            let seq = pc.wrapping_add((op64 >> 32) as u32);
+            let mut next = seq;
             macro_rules! load {
                 ($sm:expr, $v:ident, $w:ident => $ext:expr) => {{
                     let addr = a.wrapping_add(imm);
@@ -182,6 +192,11 @@ impl Soc {
                 k::NOP => {}
                 _ => break Burst::Slow,
             }
+            i = if next == seq {
+                i.wrapping_add(1)
+            } else {
+                code.line_at(next) as usize
+            };
             pc = next;
             left -= 1;
             n += 1;
