@@ -424,6 +424,9 @@ impl Schedule {
         self.slot_start_unchecked(self.own_slot(), from)
     }
 
+    // Out of line: used from every path that times a slot, and its 64-bit division is a
+    // call and some twenty instructions at each place it would be inlined.
+    #[inline(never)]
     fn slot_start_unchecked(&self, slot: u8, from: u64) -> u64 {
         let slot = u64::from(slot % SLOTS);
         let f = u64::from(FRAME_US);

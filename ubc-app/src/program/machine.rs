@@ -492,9 +492,7 @@ impl Program {
         // One due while this poll runs goes out between the inputs, on time (see
         // `STATE_WATCH_US`).
         let mut state_due = self
-            .mac
-            .as_mut()
-            .and_then(|m| m.next_state_due(now))
+            .next_state_due(now)
             .filter(|&d| d > now && d - now <= STATE_WATCH_US);
         let mut now = now;
         let mut buf = [0u8; 64];
