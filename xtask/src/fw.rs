@@ -315,8 +315,12 @@ fn relaxed_target_spec() -> Result<PathBuf> {
     let dir = app_dir().join("target").join("spec");
     let path = dir.join(format!("{TARGET}.json"));
     if std::fs::read_to_string(&path).ok().as_deref() != Some(text.as_str()) {
+        // Written beside and renamed into place, so a build started meanwhile never reads
+        // half a file.
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        let part = dir.join(format!("{TARGET}.json.{}", std::process::id()));
+        std::fs::write(&part, text).with_context(|| format!("writing {}", part.display()))?;
+        std::fs::rename(&part, &path).with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(path)
 }
