@@ -200,6 +200,7 @@ pub fn clippy(board: &str) -> Result<String> {
             vec!["-p", "ubc-hal", "--features", &hal_features],
         ),
     ];
+    let target = target_arg(toolchain)?;
     for (dir, args) in &runs {
         let mut cmd = match toolchain {
             Toolchain::Rustup => clean_command("cargo", false),
@@ -217,7 +218,7 @@ pub fn clippy(board: &str) -> Result<String> {
         }
         cmd.current_dir(dir)
             .args(["--release", "--target"])
-            .arg(target_arg(toolchain)?)
+            .arg(&target)
             .arg("--target-dir")
             .arg(&target_dir)
             .args(args)
