@@ -149,10 +149,13 @@ fn check_outputs(out: &Path, exp: &Experiment) -> Value {
         assert_eq!(f["car"].as_u64(), Some(u64::from(car.id)), "{info:#}");
         let elf = f["elf"].as_str().expect("ELF path");
         let sha = f["sha256"].as_str().expect("SHA-256");
-        assert!(
-            sha.len() == 64 && sha.bytes().all(|b| b.is_ascii_hexdigit()),
-            "{info:#}"
-        );
+        let image = f["image_sha256"].as_str().expect("image SHA-256");
+        for h in [sha, image] {
+            assert!(
+                h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()),
+                "{info:#}"
+            );
+        }
         assert!(std::path::Path::new(elf).is_file(), "{info:#}");
     }
     let svg = std::fs::read_to_string(out.join("trajectories.svg")).unwrap();

@@ -12,6 +12,10 @@
 //! [`relaxed_target_spec`]): the linker turns most two-instruction calls into one, 3 KB of a
 //! 88 KB image. A rustup target builds without it.
 //!
+//! With the Debian toolchain the firmware's paths are also trimmed (cargo's `trim-paths`, see
+//! [`TRIM_PATHS`]): the image names its sources relative to their packages, so the same
+//! sources give the same bytes wherever they are checked out.
+//!
 //! Each board builds into its own target dir, `ubc-app/target/<board>/`.
 
 use std::ffi::OsString;
@@ -39,6 +43,18 @@ const BUILD_STD: [&str; 2] = [
 const DEBIAN_RUSTC: &str = "/usr/bin/rustc";
 /// Cargo's flag that lets `--target` name a target specification file.
 const JSON_TARGET_SPEC: &str = "-Zjson-target-spec";
+/// Cargo's flags that trim the build's paths in panic locations, log locations and debug
+/// information: the package's own sources as `src/...`, other packages as
+/// `name-version/...`, the standard library as `/rustc/HASH/library/...`. Without them an
+/// image would hold the absolute paths of its checkout and of `CARGO_HOME`, and two clones
+/// of the same commit in different directories would build different bytes.
+const TRIM_PATHS: [&str; 5] = [
+    "-Ztrim-paths",
+    "--config",
+    "profile.release.trim-paths=\"all\"",
+    "--config",
+    "profile.dev.trim-paths=\"all\"",
+];
 const DEBIAN_LINKER: &str = "ld.lld-16";
 /// Environment variable cargo reads the target's linker from.
 const LINKER_VAR: &str = "CARGO_TARGET_RISCV32IMAC_UNKNOWN_NONE_ELF_LINKER";
@@ -132,6 +148,7 @@ pub fn build_features(board: &str, bin: &str, features: &[&str], release: bool) 
             cmd.arg("build")
                 .args(BUILD_STD)
                 .arg(JSON_TARGET_SPEC)
+                .args(TRIM_PATHS)
                 .env("RUSTC", DEBIAN_RUSTC)
                 .env("RUSTC_BOOTSTRAP", "1")
                 .env(LINKER_VAR, DEBIAN_LINKER);

@@ -90,6 +90,51 @@ pub fn crate_of_path(path: &str, root: &str) -> String {
     "(other sources)".to_owned()
 }
 
+/// The firmware's own package (the only package whose sources a trimmed path names without
+/// a package directory).
+const APP_DIR: &str = "ubc-app";
+
+/// A source path as an untrimmed build names it, from the form cargo's `trim-paths` gives it
+/// (`crate::fw::TRIM_PATHS`): the firmware package's `src/...` becomes
+/// `ROOT/ubc-app/src/...`, a workspace package's `name-version/...` becomes `ROOT/name/...`,
+/// a registry package's `REGISTRY/name-version/...` becomes `/registry/src/REGISTRY/...`.
+/// A trimmed path may come joined to the compilation unit's directory, itself trimmed
+/// (`radio-mac-0.1.0/index.crates.io-HASH/siphasher-1.0.4/src/sip.rs` for code of a registry
+/// package inlined into a workspace package): the last package directory in it decides.
+/// Absolute paths (the standard library's `/rustc/HASH/library/...`, or an untrimmed build)
+/// are returned as they are.
+pub fn untrimmed(path: &str, root: &str) -> String {
+    if path.starts_with('/') {
+        return path.to_owned();
+    }
+    let parts: Vec<&str> = path
+        .split('/')
+        .filter(|p| !p.is_empty() && *p != ".")
+        .collect();
+    let package = parts.iter().rposition(|p| package_name(p).is_some());
+    match package {
+        Some(i) if i > 0 && parts[i - 1].starts_with("index.") => {
+            format!("/registry/src/{}", parts[i - 1..].join("/"))
+        }
+        Some(i) => {
+            let name = package_name(parts[i]).unwrap_or(parts[i]);
+            format!("{root}/{name}/{}", parts[i + 1..].join("/"))
+        }
+        None => match parts.iter().position(|p| *p == "src") {
+            Some(i) => format!("{root}/{APP_DIR}/{}", parts[i..].join("/")),
+            None => path.to_owned(),
+        },
+    }
+}
+
+/// The name of a `name-version` directory (`heapless-0.9.3`), `None` for any other name.
+fn package_name(dir: &str) -> Option<&str> {
+    let (name, version) = dir.rsplit_once('-')?;
+    let semver =
+        version.split('.').count() >= 3 && version.starts_with(|c: char| c.is_ascii_digit());
+    (semver && !name.is_empty()).then_some(name)
+}
+
 /// The group of a demangled symbol name (see the module documentation).
 pub fn group_of_symbol(name: &str) -> String {
     const MEM: [&str; 5] = ["memcpy", "memmove", "memset", "memcmp", "bcmp"];
@@ -229,7 +274,7 @@ fn by_source(file: &object::File<'_>, root: &str) -> Result<BySource> {
                     }
                 }
             }
-            prev = Some((row.address(), path));
+            prev = Some((row.address(), untrimmed(&path, root)));
         }
     }
     // Each byte once: overlapping rows (rare, from merged sequences) count for the first.
@@ -533,6 +578,45 @@ mod tests {
         ] {
             assert_eq!(crate_of_path(path, root), krate, "{path}");
         }
+    }
+
+    #[test]
+    fn crates_from_trimmed_paths() {
+        let root = "/work/tree";
+        for (path, krate) in [
+            (
+                "index.crates.io-1949cf8c6b5b557f/heapless-0.9.3/src/vec.rs",
+                "heapless",
+            ),
+            (
+                "index.crates.io-1949cf8c6b5b557f/critical-section-1.2.0/src/lib.rs",
+                "critical_section",
+            ),
+            (
+                "/rustc/ac68faa20c58cbccd01ee7208bf3b6e93a7d7f96/library/core/src/num/mod.rs",
+                "core",
+            ),
+            ("maneuvers-0.1.0/src/safety.rs", "maneuvers"),
+            ("radio-mac-0.1.0/src/wire.rs", "radio_mac"),
+            ("./src/firmware.rs", "ubc_app"),
+            ("src/program/machine.rs", "ubc_app"),
+            (
+                "radio-mac-0.1.0/index.crates.io-1949cf8c6b5b557f/siphasher-1.0.4/src/sip.rs",
+                "siphasher",
+            ),
+            ("ubc-hal-0.1.0/ubc-hal-0.1.0/src/serial.rs", "ubc_hal"),
+            ("elsewhere/x.rs", "(other sources)"),
+        ] {
+            assert_eq!(crate_of_path(&untrimmed(path, root), root), krate, "{path}");
+        }
+        assert_eq!(
+            short_path(&untrimmed("radio-mac-0.1.0/src/wire.rs", root), root),
+            "radio-mac/src/wire.rs"
+        );
+        assert_eq!(
+            short_path(&untrimmed("./src/firmware.rs", root), root),
+            "ubc-app/src/firmware.rs"
+        );
     }
 
     #[test]

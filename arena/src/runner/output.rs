@@ -224,31 +224,59 @@ pub(super) fn write_run_info(
     write_file(&out.join("run.json"), &text)
 }
 
-/// Each car's firmware ELF with the SHA-256 of its bytes (`null` when it cannot be read): the
-/// firmware is an input of the run as much as the experiment file.
+/// Each car's firmware ELF with the SHA-256 of its bytes and of its image (`null` when it
+/// cannot be read): the firmware is an input of the run as much as the experiment file.
 fn firmware_info(cfg: &crate::world::WorldConfig) -> serde_json::Value {
-    use sha2::{Digest, Sha256};
-    let mut digests: std::collections::BTreeMap<&Path, Option<String>> = Default::default();
+    let mut digests: std::collections::BTreeMap<&Path, (Option<String>, Option<String>)> =
+        Default::default();
     let cars: Vec<serde_json::Value> = cfg
         .cars
         .iter()
         .map(|c| {
             let elf = c.firmware.as_deref().unwrap_or(&cfg.firmware);
-            let sha = digests
+            let (sha, image) = digests
                 .entry(elf)
-                .or_insert_with(|| {
-                    fs::read(elf).ok().map(|b| {
-                        Sha256::digest(&b)
-                            .iter()
-                            .map(|x| format!("{x:02x}"))
-                            .collect()
-                    })
+                .or_insert_with(|| match fs::read(elf) {
+                    Ok(b) => (Some(hex_sha256(&[&b])), image_sha256(&b)),
+                    Err(_) => (None, None),
                 })
                 .clone();
-            json!({ "car": c.id, "elf": elf.display().to_string(), "sha256": sha })
+            json!({
+                "car": c.id, "elf": elf.display().to_string(),
+                "sha256": sha, "image_sha256": image,
+            })
         })
         .collect();
     serde_json::Value::Array(cars)
+}
+
+/// SHA-256 of the concatenated `parts`, in hex.
+fn hex_sha256(parts: &[&[u8]]) -> String {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    for p in parts {
+        h.update(p);
+    }
+    h.finalize().iter().map(|x| format!("{x:02x}")).collect()
+}
+
+/// SHA-256 of what a loader puts in memory: each loadable segment's address, file size and
+/// bytes, in the ELF's order (`None` when `elf` is not an ELF). Unlike the file's hash it
+/// leaves out symbol names and debug information, which can differ between two builds of the
+/// same sources in different directories while the program is the same.
+pub(crate) fn image_sha256(elf: &[u8]) -> Option<String> {
+    use object::{Object, ObjectSegment};
+    let file = object::File::parse(elf).ok()?;
+    let mut parts: Vec<Vec<u8>> = Vec::new();
+    for seg in file.segments() {
+        let data = seg.data().ok()?;
+        let mut head = seg.address().to_le_bytes().to_vec();
+        head.extend_from_slice(&(data.len() as u64).to_le_bytes());
+        parts.push(head);
+        parts.push(data.to_vec());
+    }
+    let refs: Vec<&[u8]> = parts.iter().map(Vec::as_slice).collect();
+    Some(hex_sha256(&refs))
 }
 
 /// `[t, error_mm]` pairs as columns named with their units: `{"t_s": [...], "error_mm": [...]}`.
@@ -259,4 +287,19 @@ pub(super) fn series_columns<S: serde::Serializer>(
     let t: Vec<f64> = v.iter().map(|p| p[0]).collect();
     let e: Vec<f64> = v.iter().map(|p| p[1]).collect();
     serde::Serialize::serialize(&json!({ "t_s": t, "error_mm": e }), s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn image_hash_needs_an_elf() {
+        assert_eq!(image_sha256(b"not an ELF"), None);
+        assert_eq!(image_sha256(&[]), None);
+        assert_eq!(
+            hex_sha256(&[b"ab", b"c"]),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
+    }
 }
