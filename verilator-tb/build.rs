@@ -31,13 +31,30 @@ fn verilator_root() -> PathBuf {
     }
 }
 
+/// The simulators built: executable name, the environment variable that gives the crate its
+/// path, and the SoC parameters it is verilated with.
+const VARIANTS: &[(&str, &str, &[&str])] = &[
+    // the SoC as the firmware, the model and the UP5K run it
+    ("vtb-sim", "VTB_SIM_EXE", &[]),
+    // the core of the parts without DSP blocks (HX8K): multiplication in the divider's loop
+    ("vtb-sim-mulseq", "VTB_SIM_MULSEQ_EXE", &["-GMUL_SEQ=1"]),
+];
+
 fn main() {
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
-    let mdir = out_dir.join("obj_dir");
     for f in RTL.iter().chain(["csrc/sim.cpp", "build.rs"].iter()) {
         println!("cargo:rerun-if-changed={f}");
     }
     println!("cargo:rerun-if-env-changed=VERILATOR_ROOT");
+    for (name, var, params) in VARIANTS {
+        let exe = build_sim(&out_dir, name, params);
+        println!("cargo:rustc-env={var}={}", exe.display());
+    }
+}
+
+/// Verilates the SoC with `params` and links the simulator `name` in `out_dir`.
+fn build_sim(out_dir: &std::path::Path, name: &str, params: &[&str]) -> PathBuf {
+    let mdir = out_dir.join(format!("obj_dir-{name}"));
 
     let _ = std::fs::remove_dir_all(&mdir);
     let status = Command::new("verilator")
@@ -57,6 +74,7 @@ fn main() {
             "--top-module",
             "soc",
         ])
+        .args(params)
         .arg("--Mdir")
         .arg(&mdir)
         .args(RTL)
@@ -72,8 +90,11 @@ fn main() {
 
     let root = verilator_root();
     let include = root.join("include");
+    let objects_dir = out_dir.join(format!("cc-{name}"));
+    let _ = std::fs::create_dir_all(&objects_dir);
     let mut build = cc::Build::new();
     build
+        .out_dir(&objects_dir)
         .cpp(true)
         .std("c++17")
         .opt_level(1)
@@ -95,7 +116,7 @@ fn main() {
         build.file(f);
     }
     let objects = build.compile_intermediates();
-    let exe = out_dir.join("vtb-sim");
+    let exe = out_dir.join(name);
     let status = build
         .get_compiler()
         .to_command()
@@ -106,8 +127,8 @@ fn main() {
         .status();
     match status {
         Ok(s) if s.success() => {}
-        Ok(s) => panic!("linking vtb-sim failed ({s})"),
-        Err(e) => panic!("cannot run the C++ compiler to link vtb-sim: {e}"),
+        Ok(s) => panic!("linking {name} failed ({s})"),
+        Err(e) => panic!("cannot run the C++ compiler to link {name}: {e}"),
     }
-    println!("cargo:rustc-env=VTB_SIM_EXE={}", exe.display());
+    exe
 }

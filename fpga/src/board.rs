@@ -64,6 +64,12 @@ impl Board {
         matches!(self, Board::Up5k)
     }
 
+    /// `MUL_SEQ` of the board's core: without DSP blocks it multiplies in its divider's loop
+    /// (34 cycles a product) rather than on a 32x32 multiplier of about 2 800 LUT4.
+    pub fn mul_seq(self) -> u32 {
+        u32::from(!self.has_dsp())
+    }
+
     /// Bytes of program RAM in the board's SoC.
     pub fn ram_bytes(self) -> u32 {
         4 << self.ram_aw()

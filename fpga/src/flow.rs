@@ -138,6 +138,14 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
             target.top()
         ));
     }
+    if target.design == Design::Core {
+        // as the board's SoC has it: without DSP blocks the core multiplies in its divider
+        script.push_str(&format!(
+            "chparam -set MUL_SEQ {} {}\n",
+            target.board.mul_seq(),
+            target.top()
+        ));
+    }
     if target.design == Design::Vision {
         script.push_str(&format!(
             "chparam -set CAP_AW {} {}\n",

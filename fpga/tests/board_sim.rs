@@ -113,6 +113,7 @@ fn run_board(board: Board) {
         ])
         .args(["-Wno-style", "--top-module", "fpga_soc", "-CFLAGS", "-O1"])
         .arg(format!("-GRAM_AW={}", board.ram_aw()))
+        .arg(format!("-GMUL_SEQ={}", board.mul_seq()))
         .arg("--Mdir")
         .arg(&dir)
         .args(&files)

@@ -5,7 +5,9 @@
 // removed. The RVFI port is left open (removed).
 `default_nettype none
 
-module core_top (
+module core_top #(
+    parameter integer MUL_SEQ = 0   // the flow sets 1 for parts without DSP blocks (rv_core)
+) (
     input  wire clk,
     input  wire rst_pin,
     input  wire seed,
@@ -46,7 +48,7 @@ module core_top (
     end
 
     /* verilator lint_off PINCONNECTEMPTY */
-    rv_core #(.FETCH_AW(14)) core (
+    rv_core #(.FETCH_AW(14), .MUL_SEQ(MUL_SEQ)) core (
         .clk(clk), .rst(rst),
         .imem_addr(imem_addr), .imem_rdata(i_data),
         .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),

@@ -25,7 +25,10 @@
 // value: mcycle = {word[31:CNT_P], cyc_lo}.
 //
 // Multiplication is a single-cycle 32x32 product (maps to DSP blocks) that also serves the
-// shifts; division and remainder use an iterative restoring divider (34 cycles). One adder
+// shifts; division and remainder use an iterative restoring divider (34 cycles). With
+// MUL_SEQ = 1 (parts without DSP blocks, where a 32x32 product in logic is about 2 800 LUT4)
+// MUL* run in the divider's loop instead, as a shift-and-add multiplier (34 cycles too),
+// and the shifts on a barrel shifter. One adder
 // computes ADD/SUB/ADDI/LUI/AUIPC, load/store addresses, jump and branch targets, trap values
 // and counter carries. WFI stalls until an enabled interrupt is pending. Interrupts are taken
 // between instructions, never inside a division.
@@ -40,7 +43,10 @@ module rv_core #(
     // The memory the fetch port reads: the 1 MiB region whose address bits 31:20 are
     // FETCH_REGION, 2^FETCH_AW words repeated over it (stores there are snooped, below).
     parameter [11:0] FETCH_REGION = 12'h800,
-    parameter integer FETCH_AW = 18
+    parameter integer FETCH_AW = 18,
+    // 0: MUL* in one cycle on a 32x32 multiplier (DSP blocks); 1: in 34 cycles, shift and
+    // add in the divider's registers (the shifts then have their own barrel shifter).
+    parameter integer MUL_SEQ = 0
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -188,6 +194,8 @@ module rv_core #(
     wire is_amo    = is_amo_any && !is_lr && !is_sc;
 
     wire is_div    = is_muldiv && f3[2];
+    // instructions that run in the divider's loop
+    wire is_iter   = is_muldiv && (f3[2] || MUL_SEQ != 0);
 
     // ---------------------------------------------------------------- adder
     // Operand A: pc for AUIPC, JAL, branches and the TRAP cycle (mepc <- pc + 0), zero for LUI,
@@ -253,13 +261,21 @@ module rv_core #(
     wire [31:0] abs_b    = (rs2v ^ {32{neg_b}}) + {31'd0, neg_b};
     wire [4:0]  sh_pow   = f3[2] ? 5'd0 - shamt : shamt;
     wire [31:0] mul_b    = is_shift ? 32'd1 << sh_pow : abs_b;
-    wire [63:0] prod_u   = {32'd0, abs_a} * {32'd0, mul_b};
+    wire [63:0] prod_1c  = {32'd0, abs_a} * {32'd0, mul_b};
+    // the magnitude of the product: the multiplier's, or the loop's {md_rem, md_quo}
+    wire [63:0] prod_u   = MUL_SEQ != 0 ? {md_rem, md_quo} : prod_1c;
     wire        prod_neg = neg_a ^ neg_b;
     wire        lo_zero  = prod_u[31:0] == 32'd0;
     wire        use_lo   = is_shift ? !f3[2] || sh_zero : f3[1:0] == 2'd0;
 
     wire [32:0] md_sh  = {md_rem, md_quo[31]};
     wire [32:0] md_dif = md_sh - {1'b0, md_div};
+    // one step of the shift-and-add multiplier: {md_rem, md_quo} = (acc + b * bit) >> 1,
+    // the multiplier's bits leaving md_quo at the bottom as the product's enter at the top
+    wire [32:0] mq_sum = {1'b0, md_rem} + (md_quo[0] ? {1'b0, md_div} : 33'd0);
+    // barrel shifter (MUL_SEQ only)
+    wire [31:0] sh_out = !f3[2] ? rs1v << shamt :
+                         f7[5] ? $unsigned($signed(rs1v) >>> shamt) : rs1v >> shamt;
     wire        md_done = md_busy && md_cnt == 6'd32;
     wire [31:0] md_res = f3[1] ? md_rem : md_quo;
     // Dividing by zero needs no special case: the loop yields an all-ones quotient and the
@@ -269,7 +285,8 @@ module rv_core #(
     wire [31:0] ng_in  = is_div ? md_res : prod_u[63:32];
     wire        ng     = is_div ? md_neg : prod_neg;
     wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, is_div ? md_neg : prod_neg & lo_zero};
-    wire [31:0] mul_out = use_lo && !is_div ? prod_u[31:0] : ng_out;   // also DIV/REM
+    wire [31:0] mul_out = MUL_SEQ != 0 && is_shift ? sh_out :
+                          use_lo && !is_div ? prod_u[31:0] : ng_out;   // also DIV/REM
 
     // ---------------------------------------------------------------- memory access
     wire [31:0] ls_addr = sum;
@@ -387,7 +404,7 @@ module rv_core #(
     wire [31:0] trap_pc = {rs2v[31:6], rs2v[5:2] | (mcause_int && rs2v[0] ? mcause_code : 4'd0),
                            2'b00};
 
-    wire stall     = (is_div && !md_done) || (is_wfi && irq_pend == 3'd0);
+    wire stall     = (is_iter && !md_done) || (is_wfi && irq_pend == 3'd0);
     // CNT cycles taken while a WFI waits count as sleep too: the program is not running
     assign sleeping = !rst && ((ex && is_wfi && irq_pend == 3'd0) || (seq == S_CNT && cnt_wfi));
     wire trap_in   = ex && (irq_take || exc);
@@ -660,17 +677,21 @@ module rv_core #(
                     intr_mip <= lines;
                 end
             end else if (ex && stall) begin
-                if (is_div) begin
+                if (is_iter) begin
                     if (!md_busy) begin
                         md_busy <= 1'b1;
                         md_cnt <= 6'd0;
                         md_quo <= abs_a;
                         md_rem <= 32'd0;
                         md_div <= abs_b;
-                    end else begin
+                    end else if (is_div) begin
                         md_cnt <= md_cnt + 6'd1;
                         md_quo <= {md_quo[30:0], !md_dif[32]};
                         md_rem <= md_dif[32] ? md_sh[31:0] : md_dif[31:0];
+                    end else begin
+                        md_cnt <= md_cnt + 6'd1;
+                        md_quo <= {mq_sum[0], md_quo[31:1]};
+                        md_rem <= mq_sum[32:1];
                     end
                 end
             end else if (amo_a) begin

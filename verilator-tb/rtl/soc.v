@@ -17,7 +17,8 @@ module soc #(
     parameter integer FMEM_AW = 19,             // address bits of the window's words
     parameter integer FG_PORT = 0,              // 1: the window is written by the fg_* port
     parameter integer VISION = 1,               // 1: the vision unit is there
-    parameter integer VIS_CAP_AW = 12           // its run buffers: 2^VIS_CAP_AW words each
+    parameter integer VIS_CAP_AW = 12,          // its run buffers: 2^VIS_CAP_AW words each
+    parameter integer MUL_SEQ = 0               // 1: multiplication in the divider's loop (rv_core)
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -95,7 +96,7 @@ module soc #(
     reg tb_meip_q;
     always @(posedge clk) tb_meip_q <= tb_meip;
 
-    rv_core #(.FETCH_AW(RAM_AW)) core (
+    rv_core #(.FETCH_AW(RAM_AW), .MUL_SEQ(MUL_SEQ)) core (
         .clk(clk), .rst(rst),
         .imem_addr(imem_addr), .imem_rdata(imem_rdata),
         .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),

@@ -8,7 +8,7 @@
 
 use crate::golden::{Bus, Hart, Retire};
 use crate::model::Record;
-use crate::soc::{Event, Exit, Soc, Stamped, RAM_BASE, RAM_SIZE};
+use crate::soc::{CoreVariant, Event, Exit, Soc, Stamped, RAM_BASE, RAM_SIZE};
 
 /// A disagreement between the RTL and the model.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -210,8 +210,13 @@ impl Checker {
 impl Lockstep {
     /// A fresh SoC and model.
     pub fn new() -> Self {
+        Self::with_core(CoreVariant::Dsp)
+    }
+
+    /// A fresh SoC whose core is `core`, and the model.
+    pub fn with_core(core: CoreVariant) -> Self {
         Self {
-            soc: Soc::new(),
+            soc: Soc::with_core(core),
             checker: Checker::new(),
             keep_records: false,
         }

@@ -30,6 +30,30 @@ use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 
 /// Path of the simulator executable, set by the build script.
 pub(crate) const SIM_EXE: &str = env!("VTB_SIM_EXE");
+/// The same SoC with the core of the parts without DSP blocks (`MUL_SEQ = 1`).
+pub(crate) const SIM_MULSEQ_EXE: &str = env!("VTB_SIM_MULSEQ_EXE");
+
+/// The core a simulated SoC is built with (`rv_core`'s `MUL_SEQ` parameter).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CoreVariant {
+    /// MUL* in one cycle on a 32x32 multiplier (DSP blocks): the SoC the firmware, the
+    /// cycle-accurate model and the UP5K run.
+    #[default]
+    Dsp,
+    /// MUL* in 34 cycles in the divider's loop, shifts on a barrel shifter: the HX8K's core.
+    /// Its cycles differ from the cycle-accurate model's; its retirements do not.
+    MulSeq,
+}
+
+impl CoreVariant {
+    /// The simulator executable of this variant.
+    pub(crate) fn exe(self) -> &'static str {
+        match self {
+            Self::Dsp => SIM_EXE,
+            Self::MulSeq => SIM_MULSEQ_EXE,
+        }
+    }
+}
 
 const PROTOCOL_VERSION: u32 = 2;
 
@@ -73,7 +97,7 @@ pub enum SimError {
 impl core::fmt::Display for SimError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::Spawn(e) => write!(f, "cannot start the simulator {SIM_EXE}: {e}"),
+            Self::Spawn(e) => write!(f, "cannot start the simulator: {e}"),
             Self::Pipe(e) => write!(f, "simulator process pipe: {e}"),
             Self::Version { expected, got } => {
                 write!(f, "simulator speaks protocol {got}, expected {expected}")
@@ -143,8 +167,8 @@ fn le_u32(b: &[u8], at: usize) -> u32 {
 
 impl Model {
     /// Starts a simulator: a fresh SoC in reset with zeroed memories.
-    pub(crate) fn spawn() -> Result<Self, SimError> {
-        let mut child = Command::new(SIM_EXE)
+    pub(crate) fn spawn(core: CoreVariant) -> Result<Self, SimError> {
+        let mut child = Command::new(core.exe())
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

@@ -5,6 +5,7 @@
 use crate::golden::Retire;
 pub use crate::model::SimError;
 use crate::model::{Model, RawEvent, Record};
+pub use crate::model::CoreVariant;
 pub use soc_model::{CameraError, CameraFrame, CameraTiming, VGA_H_BLANK};
 
 /// Core clock of the SoC in Hz (128 clocks per bit at 115200 baud; divisor 8).
@@ -236,8 +237,22 @@ impl Soc {
     /// A SoC held in reset with zeroed RAM and frame window, or why the simulator process
     /// cannot be started.
     pub fn try_new() -> Result<Self, SimError> {
+        Self::try_with_core(CoreVariant::Dsp)
+    }
+
+    /// A SoC held in reset whose core is `core`.
+    ///
+    /// # Panics
+    ///
+    /// If the simulator cannot be started.
+    pub fn with_core(core: CoreVariant) -> Self {
+        sim(Self::try_with_core(core))
+    }
+
+    /// A SoC held in reset whose core is `core`, or why the simulator cannot be started.
+    pub fn try_with_core(core: CoreVariant) -> Result<Self, SimError> {
         Ok(Self {
-            model: Model::spawn()?,
+            model: Model::spawn(core)?,
             cycle: 0,
             retired: 0,
             sleep_cycles: 0,
