@@ -684,7 +684,7 @@ module rv_core #(
                         md_quo <= abs_a;
                         md_rem <= 32'd0;
                         md_div <= abs_b;
-                    end else if (is_div) begin
+                    end else if (MUL_SEQ == 0 || is_div) begin
                         md_cnt <= md_cnt + 6'd1;
                         md_quo <= {md_quo[30:0], !md_dif[32]};
                         md_rem <= md_dif[32] ? md_sh[31:0] : md_dif[31:0];
