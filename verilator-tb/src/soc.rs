@@ -3,9 +3,9 @@
 //! appeared in. Runs are deterministic: the same program and inputs give the same trace.
 
 use crate::golden::Retire;
+pub use crate::model::CoreVariant;
 pub use crate::model::SimError;
 use crate::model::{Model, RawEvent, Record};
-pub use crate::model::CoreVariant;
 pub use soc_model::{CameraError, CameraFrame, CameraTiming, VGA_H_BLANK};
 
 /// Core clock of the SoC in Hz (128 clocks per bit at 115200 baud; divisor 8).

@@ -22,6 +22,13 @@ fn random_streams_match_the_model_on_the_sequential_multiplier() {
     streams_match_the_model(CoreVariant::MulSeq, 0..20);
 }
 
+/// On the sequential multiplier an interrupt that becomes pending during a product is taken
+/// after it (as during a division). Seed 2001's looped stream raises one during a MULHU.
+#[test]
+fn sequential_multiplier_finishes_before_an_interrupt() {
+    long_run(CoreVariant::MulSeq, 2001..2002, "mulseq-interrupt");
+}
+
 /// MUL, MULH, MULHSU and MULHU take 34 cycles on the sequential multiplier and one on the
 /// DSP core, and give the same products (every sign combination, both words, zero and the
 /// extremes), checked against the golden model and against Rust's arithmetic.
@@ -30,15 +37,28 @@ fn sequential_multiplier_products_and_cycles() {
     use verilator_tb::isa::{self, reg::*};
     const S0: u8 = 8;
     let operands = [
-        0u32, 1, 2, 3, 0x7fff_ffff, 0x8000_0000, 0xffff_ffff, 0x1234_5678, 0xdead_beef,
-        0x0001_0000, 0xffff_0001,
+        0u32,
+        1,
+        2,
+        3,
+        0x7fff_ffff,
+        0x8000_0000,
+        0xffff_ffff,
+        0x1234_5678,
+        0xdead_beef,
+        0x0001_0000,
+        0xffff_0001,
     ];
     let out = RAM_BASE + 0x8_0000;
     // (funct3, the product's word as Rust computes it)
     let ops: [(u32, fn(u32, u32) -> u32); 4] = [
         (0, |a, b| a.wrapping_mul(b)),
-        (1, |a, b| ((i64::from(a as i32) * i64::from(b as i32)) >> 32) as u32),
-        (2, |a, b| ((i64::from(a as i32) * i64::from(b)) >> 32) as u32),
+        (1, |a, b| {
+            ((i64::from(a as i32) * i64::from(b as i32)) >> 32) as u32
+        }),
+        (2, |a, b| {
+            ((i64::from(a as i32) * i64::from(b)) >> 32) as u32
+        }),
         (3, |a, b| ((u64::from(a) * u64::from(b)) >> 32) as u32),
     ];
     let mut p = Prog::new();
@@ -128,21 +148,39 @@ const LONG_PASSES: u32 = 100;
 #[test]
 #[ignore = "long: run by cargo xtask bench --only lockstep"]
 fn random_streams_in_lockstep_long() {
+    long_run(CoreVariant::Dsp, LONG_SEEDS, "lockstep-random");
+}
+
+/// Seeds of the long run on the sequential multiplier's core (a tenth of [`LONG_SEEDS`]).
+const LONG_SEEDS_MULSEQ: std::ops::Range<u64> = 2000..2036;
+
+/// The same on the core of the parts without DSP blocks (the HX8K's), over 36 seeds.
+#[test]
+#[ignore = "long: run by cargo xtask bench --only lockstep"]
+fn random_streams_in_lockstep_long_sequential_multiplier() {
+    long_run(
+        CoreVariant::MulSeq,
+        LONG_SEEDS_MULSEQ,
+        "lockstep-random-mulseq",
+    );
+}
+
+fn long_run(core: CoreVariant, seeds: std::ops::Range<u64>, mode: &str) {
     let start = Instant::now();
     let (mut retired, mut cycles, mut compressed) = (0u64, 0u64, 0u64);
-    for seed in LONG_SEEDS {
+    for seed in seeds.clone() {
         let budget = 12_000 * u64::from(LONG_PASSES);
         let (p, stimuli) = looped(seed, LONG_PASSES, budget);
-        let mut ls = Lockstep::new();
+        let mut ls = Lockstep::with_core(core);
         ls.keep_records();
         ls.load(RAM_BASE, &p.words).expect("program fits");
         let run = ls
             .run(u64::MAX, budget * 4, &stimuli)
-            .unwrap_or_else(|m| panic!("seed {seed}: {}", describe(&m)));
+            .unwrap_or_else(|m| panic!("{core:?} seed {seed}: {}", describe(&m)));
         assert_eq!(
             run.exit,
             Some(Exit::Pass),
-            "seed {seed} did not finish: pc {:#x} retired {} cycles {}",
+            "{core:?} seed {seed} did not finish: pc {:#x} retired {} cycles {}",
             run.hart.pc,
             run.retired,
             run.cycles
@@ -153,11 +191,11 @@ fn random_streams_in_lockstep_long() {
     }
     let wall = start.elapsed().as_secs_f64();
     println!(
-        "random streams: {retired} instructions ({compressed} compressed) in {cycles} cycles, \
-         {} streams x {LONG_PASSES} passes, no mismatch, {wall:.0} s",
-        LONG_SEEDS.end - LONG_SEEDS.start
+        "random streams ({core:?} core): {retired} instructions ({compressed} compressed) in \
+         {cycles} cycles, {} streams x {LONG_PASSES} passes, no mismatch, {wall:.0} s",
+        seeds.end - seeds.start
     );
     println!(
-        "figures: mode=lockstep-random instructions={retired} compressed={compressed} cycles={cycles} mismatches=0 wall_s={wall:.3}"
+        "figures: mode={mode} instructions={retired} compressed={compressed} cycles={cycles} mismatches=0 wall_s={wall:.3}"
     );
 }

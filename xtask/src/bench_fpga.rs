@@ -205,6 +205,14 @@ pub fn lockstep() -> Result<String> {
         &[],
     )?;
     let r = figures(&random, "lockstep-random").context("no figures from the random streams")?;
+    let random_seq = ignored_test_named(
+        "verilator-tb",
+        "random",
+        "random_streams_in_lockstep_long_sequential_multiplier",
+        &[],
+    )?;
+    let q = figures(&random_seq, "lockstep-random-mulseq")
+        .context("no figures from the random streams on the sequential multiplier")?;
     let elf = crate::fw::build("softcore", true)?;
     let firmware = ignored_test_named(
         "verilator-tb",
@@ -223,7 +231,12 @@ pub fn lockstep() -> Result<String> {
         field(&f, "wall_s")?,
         field(&f, "frames")?,
     );
-    let total = ri + fi;
+    let (qi, qc, qw) = (
+        field(&q, "instructions")?,
+        field(&q, "compressed")?,
+        field(&q, "wall_s")?,
+    );
+    let total = ri + qi + fi;
     let mut md = String::from("## Lockstep with the golden model\n\n");
     let _ = writeln!(
         md,
@@ -236,6 +249,10 @@ pub fn lockstep() -> Result<String> {
     );
     let _ = writeln!(
         md,
+        "| random streams on the HX8K's core (sequential multiplier; 36 seeds x 100 passes; {qc:.0} compressed) | {qi:.0} | 0 | {qw:.0} s |"
+    );
+    let _ = writeln!(
+        md,
         "| firmware + lbc-emu + ground station, {frames:.0} camera frames | {fi:.0} | 0 | {fw:.0} s |"
     );
     let _ = writeln!(
@@ -245,7 +262,7 @@ pub fn lockstep() -> Result<String> {
     );
     let _ = write!(
         md,
-        "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored random_streams_in_lockstep_long`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
+        "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored random_streams_in_lockstep_long` and `random_streams_in_lockstep_long_sequential_multiplier`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
     );
     Ok(md)
 }
