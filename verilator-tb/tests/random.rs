@@ -51,7 +51,8 @@ fn sequential_multiplier_products_and_cycles() {
     ];
     let out = RAM_BASE + 0x8_0000;
     // (funct3, the product's word as Rust computes it)
-    let ops: [(u32, fn(u32, u32) -> u32); 4] = [
+    type Word = fn(u32, u32) -> u32;
+    let ops: [(u32, Word); 4] = [
         (0, |a, b| a.wrapping_mul(b)),
         (1, |a, b| {
             ((i64::from(a as i32) * i64::from(b as i32)) >> 32) as u32
