@@ -83,9 +83,18 @@ impl Board {
         }
     }
 
-    /// Bytes of the frame-grabber window on the board.
+    /// Bytes of the frame-grabber window on the board (`FMEM_AW` of its top: on the HX8K two
+    /// block RAMs, so that the SoC with its vision unit fits the part's 32).
     pub fn frame_window_bytes(self) -> u32 {
-        2048
+        4 << self.frame_window_aw()
+    }
+
+    /// Frame-window word-address bits (`FMEM_AW` of `fpga_soc`).
+    pub fn frame_window_aw(self) -> u32 {
+        match self {
+            Board::Up5k => 9,
+            Board::Hx8k => 8,
+        }
     }
 
     /// Word-address bits of each of the vision unit's run buffers (`VIS_CAP_AW` of the board's

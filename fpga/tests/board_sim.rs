@@ -114,6 +114,7 @@ fn run_board(board: Board) {
         .args(["-Wno-style", "--top-module", "fpga_soc", "-CFLAGS", "-O1"])
         .arg(format!("-GRAM_AW={}", board.ram_aw()))
         .arg(format!("-GMUL_SEQ={}", board.mul_seq()))
+        .arg(format!("-GFMEM_AW={}", board.frame_window_aw()))
         .arg("--Mdir")
         .arg(&dir)
         .args(&files)

@@ -1,7 +1,7 @@
 // iCE40-HX8K breakout board (HX8K, CT256): the SoC at 14.8125 MHz from the 12 MHz oscillator
 // (PLL VCO 948 MHz, 29.625 MHz out, half-rate output as the SoC clock; 0.45 % above the
 // nominal 14.7456 MHz). RAM: 4 KiB of block RAM (each halfword bank twice, for the fetch and
-// the data port); frame window 2 KiB. No DSP blocks: the core multiplies in its divider's
+// the data port); frame window 1 KiB. No DSP blocks: the core multiplies in its divider's
 // loop (MUL_SEQ, 34 cycles a product) instead of on a 32x32 multiplier of about 2 800 LUT4.
 `default_nettype none
 
@@ -57,7 +57,8 @@ module top_hx8k #(
         end
     endgenerate
 
-    fpga_soc #(.RAM_AW(10), .FMEM_AW(9), .VISION(VISION), .VIS_CAP_AW(8), .MUL_SEQ(1)) soc (
+    // The frame window is 1 KiB (two block RAMs), which leaves the vision unit its five.
+    fpga_soc #(.RAM_AW(10), .FMEM_AW(8), .VISION(VISION), .VIS_CAP_AW(8), .MUL_SEQ(1)) soc (
         .clk(soc_clk), .pll_locked(locked),
         .uart0_rxd(rx), .uart0_txd(tx), .uart1_rxd(uart1_rx), .uart1_txd(uart1_tx),
         .flash_sck(flash_sck), .flash_csn(flash_csb), .flash_mosi(flash_mosi),

@@ -104,11 +104,13 @@ pub fn fpga() -> Result<String> {
         clock_div_log2: BRING_UP_DIV_LOG2,
         ..Target::soc(Board::Up5k)
     });
-    // The UP5K SoC with its vision unit (the other rows' SoCs are without it).
-    targets.push(Target {
-        vision_unit: true,
-        ..Target::soc(Board::Up5k)
-    });
+    // Each board's SoC with its vision unit (the other rows' SoCs are without it).
+    for board in Board::ALL {
+        targets.push(Target {
+            vision_unit: true,
+            ..Target::soc(board)
+        });
+    }
     let mut outcomes = Vec::new();
     for t in &targets {
         println!("placing and routing {}", t.dir_name());
