@@ -307,6 +307,45 @@ impl Sources {
 mod tests {
     use super::*;
 
+    /// The value a board top gives parameter `name` of `fpga_soc`, or `fpga_soc`'s default.
+    fn soc_parameter(top: &str, soc: &str, name: &str) -> u32 {
+        let given = format!(".{name}(");
+        if let Some(at) = top.find(&given) {
+            let rest = &top[at + given.len()..];
+            let value = &rest[..rest.find(')').expect("a closing parenthesis")];
+            return value
+                .trim()
+                .parse()
+                .unwrap_or_else(|_| panic!("{name} = {value}"));
+        }
+        let default = format!("parameter integer {name} = ");
+        let at = soc
+            .find(&default)
+            .unwrap_or_else(|| panic!("no {name} in fpga_soc.v"));
+        let rest = &soc[at + default.len()..];
+        let end = rest
+            .find(|c: char| !c.is_ascii_digit())
+            .unwrap_or(rest.len());
+        rest[..end].parse().expect("a decimal default")
+    }
+
+    /// What the flow and the board simulation assume of each board (`Board`'s figures) is what
+    /// the board's top gives its SoC.
+    #[test]
+    fn board_figures_match_the_board_tops() {
+        let s = Sources::in_workspace();
+        let soc = std::fs::read_to_string(s.fpga.join("fpga_soc.v")).expect("fpga_soc.v");
+        for b in Board::ALL {
+            let file = s.fpga.join(format!("{}.v", b.top(Design::Soc)));
+            let top = std::fs::read_to_string(&file).expect("the board top");
+            let p = |name| soc_parameter(&top, &soc, name);
+            assert_eq!(p("RAM_AW"), b.ram_aw(), "{b}: RAM_AW");
+            assert_eq!(p("FMEM_AW"), b.frame_window_aw(), "{b}: FMEM_AW");
+            assert_eq!(p("VIS_CAP_AW"), b.vision_cap_aw(), "{b}: VIS_CAP_AW");
+            assert_eq!(p("MUL_SEQ"), b.mul_seq(), "{b}: MUL_SEQ");
+        }
+    }
+
     #[test]
     fn board_names_round_trip_and_bad_names_are_refused() {
         for b in Board::ALL {

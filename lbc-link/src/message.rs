@@ -63,7 +63,7 @@ fn classify(header: u8, data: &[u8]) -> Result<HeaderClass, DecodeError> {
 
 // Out of line: inlined into each message's decoder it cost the firmware 296 bytes more
 // (`docs/benchmarks.md` section 1), for a call once per message.
-#[inline(never)]
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 fn fields<const N: usize>(
     header: u8,
     data: &[u8],

@@ -296,7 +296,7 @@ impl IVec2 {
 
     /// `self` (a Q14 unit vector) times the length `len`, in the unit of `len`.
     // Out of line: its two products inlined at each use cost the firmware 372 bytes more.
-    #[inline(never)]
+    #[cfg_attr(target_arch = "riscv32", inline(never))]
     pub const fn along(self, len: i32) -> IVec2 {
         IVec2::new(mul_q14(len, self.x), mul_q14(len, self.y))
     }

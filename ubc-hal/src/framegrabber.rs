@@ -66,7 +66,7 @@ impl WindowMemory for MmioWindow {
 
     // Out of line: its unrolled word reads inlined at each of the five uses cost the firmware
     // 860 bytes more, for a call once per frame.
-    #[inline(never)]
+    #[cfg_attr(target_arch = "riscv32", inline(never))]
     fn read_header(&self) -> [u8; HEADER_LEN] {
         let mut out = [0u8; HEADER_LEN];
         if self.len < HEADER_LEN {

@@ -31,7 +31,7 @@
 // and the shifts on a barrel shifter. One adder
 // computes ADD/SUB/ADDI/LUI/AUIPC, load/store addresses, jump and branch targets, trap values
 // and counter carries. WFI stalls until an enabled interrupt is pending. Interrupts are taken
-// between instructions, never inside a division.
+// between instructions, never inside a division (nor, with MUL_SEQ = 1, a product).
 //
 // The RVFI-style retirement port is registered: the record of an instruction is valid in the
 // cycle after it completes.
@@ -243,6 +243,8 @@ module rv_core #(
     end
 
     // ---------------------------------------------------------------- multiply / divide
+    // MUL_SEQ = 0 (with 1, the products run in the divider's loop and the shifts on the barrel
+    // shifter below; the magnitudes and the negation are shared the same way):
     // One 32x32 unsigned multiplier (DSP blocks) serves MUL*, the shifts, and the operand
     // magnitudes below serve it and the divider. Signed products multiply magnitudes and
     // negate the 64-bit result when the signs differ; only its high word is needed then:

@@ -78,8 +78,8 @@ const RECORD_LEN: usize = 8 + 8 + 7 * 4 + 7;
 /// Why the simulator process cannot be used.
 #[derive(Debug)]
 pub enum SimError {
-    /// The executable could not be started.
-    Spawn(std::io::Error),
+    /// The executable (its path) could not be started.
+    Spawn(&'static str, std::io::Error),
     /// Talking to it failed (it died or closed its pipes).
     Pipe(std::io::Error),
     /// It speaks another protocol version (a stale build).
@@ -97,7 +97,7 @@ pub enum SimError {
 impl core::fmt::Display for SimError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::Spawn(e) => write!(f, "cannot start the simulator: {e}"),
+            Self::Spawn(exe, e) => write!(f, "cannot start the simulator {exe}: {e}"),
             Self::Pipe(e) => write!(f, "simulator process pipe: {e}"),
             Self::Version { expected, got } => {
                 write!(f, "simulator speaks protocol {got}, expected {expected}")
@@ -173,11 +173,14 @@ impl Model {
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
-            .map_err(SimError::Spawn)?;
+            .map_err(|e| SimError::Spawn(core.exe(), e))?;
         let (Some(stdin), Some(stdout)) = (child.stdin.take(), child.stdout.take()) else {
             let _ = child.kill();
             let _ = child.wait();
-            return Err(SimError::Spawn(std::io::Error::other("no pipes")));
+            return Err(SimError::Spawn(
+                core.exe(),
+                std::io::Error::other("no pipes"),
+            ));
         };
         let mut model = Self {
             child,

@@ -176,7 +176,7 @@ pub(crate) fn u16_at(b: &[u8], r: Range<usize>) -> u16 {
 /// The little-endian `u32` at `b[r]` (`r` four bytes long).
 // Out of line (header fields only): a byte-wise copy inlined at each of a dozen uses cost the
 // firmware 384 bytes more.
-#[inline(never)]
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub(crate) fn u32_at(b: &[u8], r: Range<usize>) -> u32 {
     let mut a = [0u8; 4];
     a.copy_from_slice(&b[r]);

@@ -616,7 +616,7 @@ fn ignored_test(package: &str, test: &str, env: &[(&str, &std::ffi::OsStr)]) -> 
     ignored_test_named(package, test, "", env)
 }
 
-/// Like [`ignored_test`], only the tests whose name contains `name`.
+/// Like [`ignored_test`], only the test named `name` (all of them when `name` is empty).
 pub(crate) fn ignored_test_named(
     package: &str,
     test: &str,
@@ -637,6 +637,10 @@ pub(crate) fn ignored_test_named(
         "--ignored",
         "--nocapture",
     ]);
+    if !name.is_empty() {
+        // the test of that name only, not every test whose name contains it
+        cmd.arg("--exact");
+    }
     for (k, v) in env {
         cmd.env(k, v);
     }

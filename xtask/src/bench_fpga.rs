@@ -264,7 +264,7 @@ pub fn lockstep() -> Result<String> {
     );
     let _ = write!(
         md,
-        "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored random_streams_in_lockstep_long` and `random_streams_in_lockstep_long_sequential_multiplier`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
+        "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored --exact random_streams_in_lockstep_long` and `random_streams_in_lockstep_long_sequential_multiplier`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
     );
     Ok(md)
 }

@@ -14,7 +14,8 @@
 //!
 //! With the Debian toolchain the firmware's paths are also trimmed (cargo's `trim-paths`, see
 //! [`TRIM_PATHS`]): the image names its sources relative to their packages, so the same
-//! sources give the same bytes wherever they are checked out.
+//! sources give the same loaded program wherever they are checked out (symbol names can still
+//! differ: cargo hashes a path dependency's absolute path into its crate hash).
 //!
 //! Each board builds into its own target dir, `ubc-app/target/<board>/`.
 
@@ -47,7 +48,8 @@ const JSON_TARGET_SPEC: &str = "-Zjson-target-spec";
 /// information: the package's own sources as `src/...`, other packages as
 /// `name-version/...`, the standard library as `/rustc/HASH/library/...`. Without them an
 /// image would hold the absolute paths of its checkout and of `CARGO_HOME`, and two clones
-/// of the same commit in different directories would build different bytes.
+/// of the same commit in different directories would build different code and data. (The
+/// symbol table and debug information can still differ between them, in crate hashes.)
 const TRIM_PATHS: [&str; 5] = [
     "-Ztrim-paths",
     "--config",

@@ -260,10 +260,11 @@ fn hex_sha256(parts: &[&[u8]]) -> String {
     h.finalize().iter().map(|x| format!("{x:02x}")).collect()
 }
 
-/// SHA-256 of what a loader puts in memory: each loadable segment's address, file size and
-/// bytes, in the ELF's order (`None` when `elf` is not an ELF). Unlike the file's hash it
-/// leaves out symbol names and debug information, which can differ between two builds of the
-/// same sources in different directories while the program is the same.
+/// SHA-256 of the program an ELF loads: each loadable segment's virtual address, size in
+/// memory, and bytes in the file, in the ELF's order (`None` when `elf` is not an ELF). Unlike
+/// the file's hash it leaves out symbol names and debug information, which can differ
+/// between two builds of the same sources in different directories while the program is the
+/// same.
 pub(crate) fn image_sha256(elf: &[u8]) -> Option<String> {
     use object::{Object, ObjectSegment};
     let file = object::File::parse(elf).ok()?;
@@ -271,6 +272,7 @@ pub(crate) fn image_sha256(elf: &[u8]) -> Option<String> {
     for seg in file.segments() {
         let data = seg.data().ok()?;
         let mut head = seg.address().to_le_bytes().to_vec();
+        head.extend_from_slice(&seg.size().to_le_bytes());
         head.extend_from_slice(&(data.len() as u64).to_le_bytes());
         parts.push(head);
         parts.push(data.to_vec());
@@ -292,6 +294,35 @@ pub(super) fn series_columns<S: serde::Serializer>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On the firmware (`VTB_FIRMWARE`, which `cargo xtask test` sets): a byte changed in the
+    /// debug information leaves the image's hash alone and changes the file's; one changed in
+    /// the code changes both.
+    #[test]
+    fn image_hash_follows_the_loaded_bytes_only() {
+        use object::{Object, ObjectSection};
+        let Some(elf) = std::env::var_os("VTB_FIRMWARE").and_then(|p| fs::read(p).ok()) else {
+            println!("SKIPPED: VTB_FIRMWARE does not name a firmware ELF");
+            return;
+        };
+        let file = object::File::parse(&*elf).expect("an ELF");
+        let offset_in = |name: &str| -> usize {
+            let s = file.section_by_name(name).expect(name);
+            let (start, len) = s.file_range().expect("bytes in the file");
+            assert!(len > 8, "{name} is empty");
+            (start + len / 2) as usize
+        };
+        let (debug, text) = (offset_in(".debug_str"), offset_in(".text"));
+        let image = image_sha256(&elf).expect("an ELF");
+        let whole = hex_sha256(&[&elf]);
+        let mut changed = elf.clone();
+        changed[debug] ^= 0x20;
+        assert_eq!(image_sha256(&changed).as_deref(), Some(image.as_str()));
+        assert_ne!(hex_sha256(&[&changed]), whole);
+        let mut changed = elf.clone();
+        changed[text] ^= 0x20;
+        assert_ne!(image_sha256(&changed).as_deref(), Some(image.as_str()));
+    }
 
     #[test]
     fn image_hash_needs_an_elf() {
