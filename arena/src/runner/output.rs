@@ -252,8 +252,8 @@ fn firmware_info(cfg: &crate::world::WorldConfig) -> serde_json::Value {
 
 /// SHA-256 of the concatenated `parts`, in hex.
 fn hex_sha256(parts: &[&[u8]]) -> String {
-    use sha2::{Digest, Sha256};
-    let mut h = Sha256::new();
+    use sha2::Digest;
+    let mut h = sha2::Sha256::new();
     for p in parts {
         h.update(p);
     }
@@ -268,17 +268,23 @@ fn hex_sha256(parts: &[&[u8]]) -> String {
 pub(crate) fn image_sha256(elf: &[u8]) -> Option<String> {
     use object::{Object, ObjectSegment};
     let file = object::File::parse(elf).ok()?;
-    let mut parts: Vec<Vec<u8>> = Vec::new();
+    let mut parts: Vec<&[u8]> = Vec::new();
+    let mut heads: Vec<[u8; 24]> = Vec::new();
     for seg in file.segments() {
         let data = seg.data().ok()?;
-        let mut head = seg.address().to_le_bytes().to_vec();
-        head.extend_from_slice(&seg.size().to_le_bytes());
-        head.extend_from_slice(&(data.len() as u64).to_le_bytes());
-        parts.push(head);
-        parts.push(data.to_vec());
+        let mut head = [0u8; 24];
+        head[..8].copy_from_slice(&seg.address().to_le_bytes());
+        head[8..16].copy_from_slice(&seg.size().to_le_bytes());
+        head[16..].copy_from_slice(&(data.len() as u64).to_le_bytes());
+        heads.push(head);
+        parts.push(data);
     }
-    let refs: Vec<&[u8]> = parts.iter().map(Vec::as_slice).collect();
-    Some(hex_sha256(&refs))
+    let mut all: Vec<&[u8]> = Vec::with_capacity(2 * parts.len());
+    for (head, data) in heads.iter().zip(parts) {
+        all.push(head);
+        all.push(data);
+    }
+    Some(hex_sha256(&all))
 }
 
 /// `[t, error_mm]` pairs as columns named with their units: `{"t_s": [...], "error_mm": [...]}`.
