@@ -5,11 +5,13 @@
 use clap::Parser;
 use lbc_emu::{Lbc, LbcConfig};
 use qemu_harness::{LineDecoder, LogFormat};
+use soc_model::Retire;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 use verilator_tb::cosim::LbcCosim;
 use verilator_tb::lockstep::Lockstep;
+use verilator_tb::pipeline;
 use verilator_tb::soc::{Event, Exit, Soc, Uart, CLOCK_HZ};
 
 #[derive(Debug, Parser)]
@@ -29,6 +31,10 @@ struct Args {
     /// Check every retired instruction against the golden model instead (no UART peers).
     #[arg(long, conflicts_with_all = ["lbc_emu", "lbc_hex"])]
     lockstep: bool,
+    /// Also estimate the cycles of pipelined core designs from the run's instruction stream
+    /// (`verilator_tb::pipeline`; needs `--lbc-emu`).
+    #[arg(long, requires = "lbc_emu")]
+    pipeline: bool,
 }
 
 /// Runs the image in lockstep with the golden model.
@@ -63,6 +69,46 @@ fn lockstep(elf: &[u8], max_cycles: u64) -> ExitCode {
             println!("figures: mode=lockstep mismatches=1");
             ExitCode::from(4)
         }
+    }
+}
+
+/// The instruction mix of the run and the estimated cycles of pipelined designs.
+fn print_pipeline(records: &[Retire], awake: u64) {
+    let m = pipeline::mix(records);
+    let pct = |n: u64| 100.0 * n as f64 / m.instructions.max(1) as f64;
+    println!(
+        "mix of {} instructions: branches {:.2} % ({:.2} % taken; backward {:.2} %, {:.2} % taken), \
+         JAL {:.2} %, JALR {:.2} % (returns {:.2} %), loads {:.2} % (used at once {:.2} %), \
+         products {:.2} % (used at once {:.2} %), CSR {:.2} %, MRET/WFI/ECALL/EBREAK {:.3} %, \
+         trap entries {:.3} %",
+        m.instructions,
+        pct(m.branches),
+        pct(m.taken),
+        pct(m.backward),
+        pct(m.backward_taken),
+        pct(m.jal),
+        pct(m.jalr),
+        pct(m.returns),
+        pct(m.loads),
+        pct(m.load_use),
+        pct(m.muls),
+        pct(m.mul_use),
+        pct(m.csr),
+        pct(m.system),
+        pct(m.traps),
+    );
+    println!("| design | control | data | serial | awake cycles | CPI |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    println!(
+        "| this core | | | | {awake} | {:.3} |",
+        awake as f64 / m.instructions.max(1) as f64
+    );
+    for d in pipeline::Design::candidates() {
+        let e = pipeline::estimate(&d, records, awake);
+        println!(
+            "| {} | {} | {} | {} | {} | {:.3} |",
+            d.name, e.control, e.data, e.serial, e.cycles, e.cpi
+        );
     }
 }
 
@@ -110,17 +156,21 @@ fn main() -> ExitCode {
     let mut decoder = LineDecoder::new(&format);
     let mut lines = Vec::new();
     let start = Instant::now();
-    let (soc, events) = match args.lbc_emu {
+    let (soc, events, records) = match args.lbc_emu {
         Some(car) => {
             let lbc = Lbc::with_memory_eeprom(LbcConfig::default(), car);
             let mut cosim = LbcCosim::new(soc, lbc);
+            if args.pipeline {
+                cosim = cosim.with_records();
+            }
             let events = cosim.run(args.max_cycles);
-            (cosim.soc, events)
+            let records: Vec<Retire> = cosim.records().iter().map(|(_, r)| *r).collect();
+            (cosim.soc, events, records)
         }
         None => {
             soc.release();
             let events = soc.run(args.max_cycles);
-            (soc, events)
+            (soc, events, Vec::new())
         }
     };
     let wall = start.elapsed().as_secs_f64();
@@ -154,6 +204,9 @@ fn main() -> ExitCode {
             "free"
         }
     );
+    if args.pipeline {
+        print_pipeline(&records, awake);
+    }
     match exit {
         Some(Exit::Pass) => ExitCode::SUCCESS,
         Some(Exit::Fail(code)) => ExitCode::from(u8::try_from(code).unwrap_or(255)),
