@@ -7,7 +7,7 @@
 //! a quarter radius of the circle). Across the circle a proportional term pulls it onto the
 //! radius.
 
-use crate::fixed::{from_mrad, fx, mul_shift, wrap, IVec2, TURN};
+use crate::fixed::{from_mrad, fx, mul_q14, mul_shift, wrap, IVec2, TURN};
 use crate::law::{error_units_fx, Guidance, Law, LawInput, Plan, Waypoint};
 use crate::param::{Param, Values};
 use crate::{CarPose, Neighbour, Phase};
@@ -168,7 +168,7 @@ impl Circle {
         // GAP_GAIN * (ahead - behind) / 2 * radius, in mm/s: 2.5 mm per unit of arc, so
         // 0.6 / 2 * 2.5 = 3/4 of the arc.
         let balance = arc(g.ahead - g.behind) * (GAP_GAIN_TENTHS * 5) / 40;
-        let v_t = mul_shift(i64::from(speed + balance), i64::from(near), 14)
+        let v_t = mul_q14(speed + balance, near)
             .max(0)
             .min(2 * speed + fx(150));
         let v_r = radial_err * RADIAL_MM_S_PER_UNIT.0 / RADIAL_MM_S_PER_UNIT.1;
