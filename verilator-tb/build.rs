@@ -9,6 +9,7 @@ const RTL: &[&str] = &[
     "rtl/soc.v",
     "rtl/soc_ram.v",
     "rtl/rv_core.v",
+    "rtl/rv_pipe.v",
     "rtl/uart16550.v",
     "rtl/clint.v",
     "rtl/plic.v",
@@ -38,6 +39,14 @@ const VARIANTS: &[(&str, &str, &[&str])] = &[
     ("vtb-sim", "VTB_SIM_EXE", &[]),
     // the core of the parts without DSP blocks (HX8K): multiplication in the divider's loop
     ("vtb-sim-mulseq", "VTB_SIM_MULSEQ_EXE", &["-GMUL_SEQ=1"]),
+    // the pipelined core (rv_pipe), with the multiplier and with multiplication in the
+    // divider's loop (the HX8K's core)
+    ("vtb-sim-pipe", "VTB_SIM_PIPE_EXE", &["-GPIPE=1"]),
+    (
+        "vtb-sim-pipe-mulseq",
+        "VTB_SIM_PIPE_MULSEQ_EXE",
+        &["-GPIPE=1", "-GMUL_SEQ=1"],
+    ),
 ];
 
 fn main() {

@@ -70,6 +70,12 @@ impl Board {
         u32::from(!self.has_dsp())
     }
 
+    /// `PIPE` of the board's SoC: the pipelined core (`rv_pipe`) where it fits (the HX8K; the
+    /// UP5K's SoC is 114 % of the part with it).
+    pub fn pipe(self) -> u32 {
+        u32::from(matches!(self, Board::Hx8k))
+    }
+
     /// Bytes of program RAM in the board's SoC.
     pub fn ram_bytes(self) -> u32 {
         4 << self.ram_aw()
@@ -248,7 +254,7 @@ impl Target {
         let rtl = |f: &str| sources.rtl.join(f);
         let fpga = |f: &str| sources.fpga.join(f);
         match self.design {
-            Design::Core => vec![rtl("rv_core.v"), fpga("core_top.v")],
+            Design::Core => vec![rtl("rv_core.v"), rtl("rv_pipe.v"), fpga("core_top.v")],
             Design::Vision => vec![rtl("vision_unit.v"), fpga("vision_top.v")],
             Design::Soc => {
                 let ram = match self.board {
@@ -259,6 +265,7 @@ impl Target {
                     rtl("soc.v"),
                     ram,
                     rtl("rv_core.v"),
+                    rtl("rv_pipe.v"),
                     rtl("uart16550.v"),
                     rtl("clint.v"),
                     rtl("plic.v"),
@@ -343,6 +350,7 @@ mod tests {
             assert_eq!(p("FMEM_AW"), b.frame_window_aw(), "{b}: FMEM_AW");
             assert_eq!(p("VIS_CAP_AW"), b.vision_cap_aw(), "{b}: VIS_CAP_AW");
             assert_eq!(p("MUL_SEQ"), b.mul_seq(), "{b}: MUL_SEQ");
+            assert_eq!(p("PIPE"), b.pipe(), "{b}: PIPE");
         }
     }
 

@@ -141,8 +141,10 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
     if target.design == Design::Core {
         // as the board's SoC has it: without DSP blocks the core multiplies in its divider
         script.push_str(&format!(
-            "chparam -set MUL_SEQ {} {}\n",
+            "chparam -set MUL_SEQ {} {}\nchparam -set PIPE {} {}\n",
             target.board.mul_seq(),
+            target.top(),
+            target.board.pipe(),
             target.top()
         ));
     }

@@ -83,6 +83,7 @@ fn run_board(board: Board) {
     }
     for f in [
         "rv_core.v",
+        "rv_pipe.v",
         "uart16550.v",
         "clint.v",
         "plic.v",
@@ -114,6 +115,7 @@ fn run_board(board: Board) {
         .args(["-Wno-style", "--top-module", "fpga_soc", "-CFLAGS", "-O1"])
         .arg(format!("-GRAM_AW={}", board.ram_aw()))
         .arg(format!("-GMUL_SEQ={}", board.mul_seq()))
+        .arg(format!("-GPIPE={}", board.pipe()))
         .arg(format!("-GFMEM_AW={}", board.frame_window_aw()))
         .arg("--Mdir")
         .arg(&dir)

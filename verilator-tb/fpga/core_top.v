@@ -6,7 +6,8 @@
 `default_nettype none
 
 module core_top #(
-    parameter integer MUL_SEQ = 0   // the flow sets 1 for parts without DSP blocks (rv_core)
+    parameter integer MUL_SEQ = 0,  // the flow sets 1 for parts without DSP blocks (rv_core)
+    parameter integer PIPE = 0      // the flow sets 1 where the board's SoC has rv_pipe
 ) (
     input  wire clk,
     input  wire rst_pin,
@@ -48,20 +49,39 @@ module core_top #(
     end
 
     /* verilator lint_off PINCONNECTEMPTY */
-    rv_core #(.FETCH_AW(14), .MUL_SEQ(MUL_SEQ)) core (
-        .clk(clk), .rst(rst),
-        .imem_addr(imem_addr), .imem_rdata(i_data),
-        .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
-        .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(d_data),
-        .dmem_rd_pre(dmem_rd_pre),
-        .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
-        .irq_software(irq[0]), .irq_timer(irq[1]), .irq_external(irq[2]),
-        .sleeping(),
-        .rvfi_valid(), .rvfi_order(), .rvfi_insn(), .rvfi_trap(), .rvfi_intr(),
-        .rvfi_pc_rdata(), .rvfi_pc_wdata(), .rvfi_rd_addr(), .rvfi_rd_wdata(),
-        .rvfi_mem_addr(), .rvfi_mem_rmask(), .rvfi_mem_wmask(), .rvfi_mem_rdata(),
-        .rvfi_mem_wdata(), .rvfi_ext_mip(), .rvfi_ext_intr_mip()
-    );
+    generate
+        if (PIPE != 0) begin : g_pipe
+            rv_pipe #(.FETCH_AW(14), .MUL_SEQ(MUL_SEQ)) core (
+                .clk(clk), .rst(rst),
+                .imem_addr(imem_addr), .imem_rdata(i_data),
+                .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
+                .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(d_data),
+                .dmem_rd_pre(dmem_rd_pre),
+                .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
+                .irq_software(irq[0]), .irq_timer(irq[1]), .irq_external(irq[2]),
+                .sleeping(),
+                .rvfi_valid(), .rvfi_order(), .rvfi_insn(), .rvfi_trap(), .rvfi_intr(),
+                .rvfi_pc_rdata(), .rvfi_pc_wdata(), .rvfi_rd_addr(), .rvfi_rd_wdata(),
+                .rvfi_mem_addr(), .rvfi_mem_rmask(), .rvfi_mem_wmask(), .rvfi_mem_rdata(),
+                .rvfi_mem_wdata(), .rvfi_ext_mip(), .rvfi_ext_intr_mip()
+            );
+        end else begin : g_core
+            rv_core #(.FETCH_AW(14), .MUL_SEQ(MUL_SEQ)) core (
+                .clk(clk), .rst(rst),
+                .imem_addr(imem_addr), .imem_rdata(i_data),
+                .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
+                .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(d_data),
+                .dmem_rd_pre(dmem_rd_pre),
+                .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
+                .irq_software(irq[0]), .irq_timer(irq[1]), .irq_external(irq[2]),
+                .sleeping(),
+                .rvfi_valid(), .rvfi_order(), .rvfi_insn(), .rvfi_trap(), .rvfi_intr(),
+                .rvfi_pc_rdata(), .rvfi_pc_wdata(), .rvfi_rd_addr(), .rvfi_rd_wdata(),
+                .rvfi_mem_addr(), .rvfi_mem_rmask(), .rvfi_mem_wmask(), .rvfi_mem_rdata(),
+                .rvfi_mem_wdata(), .rvfi_ext_mip(), .rvfi_ext_intr_mip()
+            );
+        end
+    endgenerate
     /* verilator lint_on PINCONNECTEMPTY */
 
     assign out0 = ^{i_addr_q, d_addr_q[31:16]};

@@ -13,7 +13,8 @@ module fpga_soc #(
     parameter integer VISION = 1,             // 1: the SoC has the vision unit
     parameter integer VIS_CAP_AW = 9,         // vision unit: 2^VIS_CAP_AW words per run buffer
     parameter [23:0]  FLASH_OFFSET = 24'h10_0000,
-    parameter integer MUL_SEQ = 0             // 1: multiplication in the divider's loop (no DSP)
+    parameter integer MUL_SEQ = 0,            // 1: multiplication in the divider's loop (no DSP)
+    parameter integer PIPE = 0                // 1: the pipelined core (rv_pipe)
 ) (
     input  wire       clk,
     input  wire       pll_locked,
@@ -86,7 +87,7 @@ module fpga_soc #(
     /* verilator lint_off PINCONNECTEMPTY */
     soc #(
         .RAM_AW(RAM_AW), .FMEM_WORDS(1 << FMEM_AW), .FMEM_AW(FMEM_AW), .FG_PORT(1),
-        .VISION(VISION), .VIS_CAP_AW(VIS_CAP_AW), .MUL_SEQ(MUL_SEQ)
+        .VISION(VISION), .VIS_CAP_AW(VIS_CAP_AW), .MUL_SEQ(MUL_SEQ), .PIPE(PIPE)
     ) soc0 (
         .clk(clk), .rst(soc_rst),
         .bd_we(bd_we), .bd_addr({{(18-RAM_AW){1'b0}}, bd_addr}), .bd_wdata(bd_wdata),

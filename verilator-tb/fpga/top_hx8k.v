@@ -3,6 +3,7 @@
 // nominal 14.7456 MHz). RAM: 4 KiB of block RAM (each halfword bank twice, for the fetch and
 // the data port); frame window 1 KiB. No DSP blocks: the core multiplies in its divider's
 // loop (MUL_SEQ, 34 cycles a product) instead of on a 32x32 multiplier of about 2 800 LUT4.
+// The core is the pipelined one (PIPE, rtl/rv_pipe.v): the SoC reaches about 40 MHz.
 `default_nettype none
 
 module top_hx8k #(
@@ -58,7 +59,8 @@ module top_hx8k #(
     endgenerate
 
     // The frame window is 1 KiB (two block RAMs), which leaves the vision unit its five.
-    fpga_soc #(.RAM_AW(10), .FMEM_AW(8), .VISION(VISION), .VIS_CAP_AW(8), .MUL_SEQ(1)) soc (
+    fpga_soc #(.RAM_AW(10), .FMEM_AW(8), .VISION(VISION), .VIS_CAP_AW(8), .MUL_SEQ(1),
+              .PIPE(1)) soc (
         .clk(soc_clk), .pll_locked(locked),
         .uart0_rxd(rx), .uart0_txd(tx), .uart1_rxd(uart1_rx), .uart1_txd(uart1_tx),
         .flash_sck(flash_sck), .flash_csn(flash_csb), .flash_mosi(flash_mosi),

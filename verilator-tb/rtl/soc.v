@@ -18,7 +18,8 @@ module soc #(
     parameter integer FG_PORT = 0,              // 1: the window is written by the fg_* port
     parameter integer VISION = 1,               // 1: the vision unit is there
     parameter integer VIS_CAP_AW = 12,          // its run buffers: 2^VIS_CAP_AW words each
-    parameter integer MUL_SEQ = 0               // 1: multiplication in the divider's loop (rv_core)
+    parameter integer MUL_SEQ = 0,              // 1: multiplication in the divider's loop (rv_core)
+    parameter integer PIPE = 0                  // 1: the pipelined core (rv_pipe) instead of rv_core
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -96,24 +97,47 @@ module soc #(
     reg tb_meip_q;
     always @(posedge clk) tb_meip_q <= tb_meip;
 
-    rv_core #(.FETCH_AW(RAM_AW), .MUL_SEQ(MUL_SEQ)) core (
-        .clk(clk), .rst(rst),
-        .imem_addr(imem_addr), .imem_rdata(imem_rdata),
-        .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
-        .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
-        .dmem_rd_pre(dmem_rd_pre),
-        .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
-        .irq_software(msip), .irq_timer(mtip), .irq_external(meip | tb_meip_q),
-        .sleeping(core_sleeping),
-        .rvfi_valid(rvfi_valid), .rvfi_order(rvfi_order), .rvfi_insn(rvfi_insn),
-        .rvfi_trap(rvfi_trap), .rvfi_intr(rvfi_intr),
-        .rvfi_pc_rdata(rvfi_pc_rdata), .rvfi_pc_wdata(rvfi_pc_wdata),
-        .rvfi_rd_addr(rvfi_rd_addr), .rvfi_rd_wdata(rvfi_rd_wdata),
-        .rvfi_mem_addr(rvfi_mem_addr), .rvfi_mem_rmask(rvfi_mem_rmask),
-        .rvfi_mem_wmask(rvfi_mem_wmask), .rvfi_mem_rdata(rvfi_mem_rdata),
-        .rvfi_mem_wdata(rvfi_mem_wdata), .rvfi_ext_mip(rvfi_ext_mip),
-        .rvfi_ext_intr_mip(rvfi_ext_intr_mip)
-    );
+    generate
+        if (PIPE != 0) begin : g_pipe
+            rv_pipe #(.FETCH_AW(RAM_AW), .MUL_SEQ(MUL_SEQ)) core (
+                .clk(clk), .rst(rst),
+                .imem_addr(imem_addr), .imem_rdata(imem_rdata),
+                .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
+                .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
+                .dmem_rd_pre(dmem_rd_pre),
+                .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
+                .irq_software(msip), .irq_timer(mtip), .irq_external(meip | tb_meip_q),
+                .sleeping(core_sleeping),
+                .rvfi_valid(rvfi_valid), .rvfi_order(rvfi_order), .rvfi_insn(rvfi_insn),
+                .rvfi_trap(rvfi_trap), .rvfi_intr(rvfi_intr),
+                .rvfi_pc_rdata(rvfi_pc_rdata), .rvfi_pc_wdata(rvfi_pc_wdata),
+                .rvfi_rd_addr(rvfi_rd_addr), .rvfi_rd_wdata(rvfi_rd_wdata),
+                .rvfi_mem_addr(rvfi_mem_addr), .rvfi_mem_rmask(rvfi_mem_rmask),
+                .rvfi_mem_wmask(rvfi_mem_wmask), .rvfi_mem_rdata(rvfi_mem_rdata),
+                .rvfi_mem_wdata(rvfi_mem_wdata), .rvfi_ext_mip(rvfi_ext_mip),
+                .rvfi_ext_intr_mip(rvfi_ext_intr_mip)
+            );
+        end else begin : g_core
+            rv_core #(.FETCH_AW(RAM_AW), .MUL_SEQ(MUL_SEQ)) core (
+                .clk(clk), .rst(rst),
+                .imem_addr(imem_addr), .imem_rdata(imem_rdata),
+                .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
+                .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
+                .dmem_rd_pre(dmem_rd_pre),
+                .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
+                .irq_software(msip), .irq_timer(mtip), .irq_external(meip | tb_meip_q),
+                .sleeping(core_sleeping),
+                .rvfi_valid(rvfi_valid), .rvfi_order(rvfi_order), .rvfi_insn(rvfi_insn),
+                .rvfi_trap(rvfi_trap), .rvfi_intr(rvfi_intr),
+                .rvfi_pc_rdata(rvfi_pc_rdata), .rvfi_pc_wdata(rvfi_pc_wdata),
+                .rvfi_rd_addr(rvfi_rd_addr), .rvfi_rd_wdata(rvfi_rd_wdata),
+                .rvfi_mem_addr(rvfi_mem_addr), .rvfi_mem_rmask(rvfi_mem_rmask),
+                .rvfi_mem_wmask(rvfi_mem_wmask), .rvfi_mem_rdata(rvfi_mem_rdata),
+                .rvfi_mem_wdata(rvfi_mem_wdata), .rvfi_ext_mip(rvfi_ext_mip),
+                .rvfi_ext_intr_mip(rvfi_ext_intr_mip)
+            );
+        end
+    endgenerate
 
     // ------------------------------------------------------------------ RAM
     // `soc_ram` (rtl/soc_ram.v): two halfword banks, so the fetch port reads the 32 bits at any

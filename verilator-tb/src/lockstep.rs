@@ -152,7 +152,7 @@ impl Checker {
             hart: Hart::new(RAM_BASE),
             bus: ModelBus::new(),
             checked: 0,
-            iterative_mul: core == CoreVariant::MulSeq,
+            iterative_mul: core.iterative_mul(),
         }
     }
 

@@ -32,6 +32,10 @@ use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 pub(crate) const SIM_EXE: &str = env!("VTB_SIM_EXE");
 /// The same SoC with the core of the parts without DSP blocks (`MUL_SEQ = 1`).
 pub(crate) const SIM_MULSEQ_EXE: &str = env!("VTB_SIM_MULSEQ_EXE");
+/// The same SoC with the pipelined core (`PIPE = 1`).
+pub(crate) const SIM_PIPE_EXE: &str = env!("VTB_SIM_PIPE_EXE");
+/// The pipelined core with multiplication in the divider's loop (`PIPE = 1`, `MUL_SEQ = 1`).
+pub(crate) const SIM_PIPE_MULSEQ_EXE: &str = env!("VTB_SIM_PIPE_MULSEQ_EXE");
 
 /// The core a simulated SoC is built with (`rv_core`'s `MUL_SEQ` parameter).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -43,6 +47,11 @@ pub enum CoreVariant {
     /// MUL* in 34 cycles in the divider's loop, shifts on a barrel shifter: the HX8K's core.
     /// Its cycles differ from the cycle-accurate model's; its retirements do not.
     MulSeq,
+    /// The pipelined core (`rtl/rv_pipe.v`): four stages, MUL* on the 32x32 multiplier. Its
+    /// cycles differ from the cycle-accurate model's; its retirements do not.
+    Pipe,
+    /// The pipelined core with MUL* in the divider's loop: the HX8K's core.
+    PipeMulSeq,
 }
 
 impl CoreVariant {
@@ -51,7 +60,17 @@ impl CoreVariant {
         match self {
             Self::Dsp => SIM_EXE,
             Self::MulSeq => SIM_MULSEQ_EXE,
+            Self::Pipe => SIM_PIPE_EXE,
+            Self::PipeMulSeq => SIM_PIPE_MULSEQ_EXE,
         }
+    }
+
+    /// Every variant.
+    pub const ALL: [CoreVariant; 4] = [Self::Dsp, Self::MulSeq, Self::Pipe, Self::PipeMulSeq];
+
+    /// Whether MUL* run in the divider's loop (an interrupt waits for them).
+    pub fn iterative_mul(self) -> bool {
+        matches!(self, Self::MulSeq | Self::PipeMulSeq)
     }
 }
 

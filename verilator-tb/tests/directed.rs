@@ -4,8 +4,8 @@ mod common;
 use common::*;
 use verilator_tb::golden::cause;
 use verilator_tb::isa::{self, c, csr, reg::*};
-use verilator_tb::lockstep::Stimulus;
-use verilator_tb::soc::{map, RAM_BASE};
+use verilator_tb::lockstep::{Lockstep, Stimulus};
+use verilator_tb::soc::{map, CoreVariant, Exit, RAM_BASE};
 
 /// Where the programs keep results.
 const OUT: u32 = RAM_BASE + 0x8_0000;
@@ -757,5 +757,46 @@ fn csr_addresses_decode_exactly() {
     for n in neighbours {
         let insn = isa::csrr(A0, n);
         expect_trap(&[insn], cause::ILLEGAL_INSTRUCTION, Some(insn));
+    }
+}
+
+/// A store into an instruction the core has already fetched (the next one, or one to three
+/// further on): the instruction runs as stored, as in the golden model. The pipelined core
+/// discards what it fetched and fetches it again. The reference core takes a store into its
+/// instruction word while it waits, but the instruction right after a store was fetched
+/// before the store landed and runs as it was (RISC-V leaves that to FENCE.I, which neither
+/// core has): it is held to distances 1 to 3.
+#[test]
+fn stores_into_the_instruction_stream() {
+    for core in CoreVariant::ALL {
+        let pipelined = matches!(core, CoreVariant::Pipe | CoreVariant::PipeMulSeq);
+        for distance in u32::from(!pipelined)..4 {
+            let mut p = Prog::new();
+            p.li(T1, isa::addi(A0, ZERO, 42));
+            let base = p.here();
+            p.i(isa::auipc(T0, 0));
+            let target = base + 8 + 4 * distance;
+            p.i(isa::sw(T1, T0, (target - base) as i32));
+            for _ in 0..distance {
+                p.i(isa::NOP);
+            }
+            assert_eq!(p.here(), target);
+            p.i(isa::addi(A0, ZERO, 1)); // replaced by `addi a0, zero, 42`
+            p.li(T2, 42);
+            p.i(isa::beq(A0, T2, 8));
+            p.i(isa::jal(ZERO, 0)); // the old instruction ran: never exits
+            p.exit_pass();
+            let mut ls = Lockstep::with_core(core);
+            ls.load(RAM_BASE, &p.words).expect("program fits");
+            let run = ls
+                .run(1_000, 10_000, &[])
+                .unwrap_or_else(|m| panic!("{core:?}, distance {distance}: {}", describe(&m)));
+            assert_eq!(run.exit, Some(Exit::Pass), "{core:?}, distance {distance}");
+            assert_eq!(
+                run.hart.x[usize::from(A0)],
+                42,
+                "{core:?}, distance {distance}"
+            );
+        }
     }
 }

@@ -18,7 +18,7 @@ use std::time::Instant;
 use ubc_app::program::console::{LbcOutcome, Reply, Request, Status};
 use verilator_tb::cosim::LbcCosim;
 use verilator_tb::lockstep::Checker;
-use verilator_tb::soc::{Event, Soc, Uart, CLOCK_HZ};
+use verilator_tb::soc::{CoreVariant, Event, Soc, Uart, CLOCK_HZ};
 
 const CAR: u8 = 3;
 /// 10 ms of SoC clock.
@@ -34,6 +34,11 @@ struct Rig {
 
 impl Rig {
     fn boot() -> Option<Self> {
+        Self::boot_on(CoreVariant::Dsp)
+    }
+
+    /// The firmware on the SoC with the core `core`.
+    fn boot_on(core: CoreVariant) -> Option<Self> {
         let Some(path) = std::env::var_os("VTB_FIRMWARE") else {
             eprintln!("VTB_FIRMWARE not set: skipping the firmware test");
             return None;
@@ -41,11 +46,11 @@ impl Rig {
         let path = std::path::PathBuf::from(path);
         let elf = std::fs::read(&path).expect("VTB_FIRMWARE is readable");
         let format = LogFormat::from_elf_bytes(&elf, &path).expect("defmt table");
-        let mut soc = Soc::new();
+        let mut soc = Soc::with_core(core);
         soc.load_elf(&elf).expect("a softcore image");
         let ground = Rc::new(RefCell::new(Ground::new(CAR, false)));
         let peer = GroundPeer(Rc::clone(&ground));
-        let mut checker = Checker::new();
+        let mut checker = Checker::with_core(core);
         checker.load_elf(&elf).expect("a softcore image");
         let cosim = LbcCosim::new(soc, Lbc::with_memory_eeprom(LbcConfig::default(), CAR))
             .with_radio(Box::new(peer))
@@ -146,7 +151,18 @@ fn softcore_firmware_boots_and_brings_up_the_lbc() {
 
 #[test]
 fn softcore_firmware_moves_the_car_on_a_console_request() {
-    let Some(mut rig) = Rig::boot() else { return };
+    moves_the_car(CoreVariant::Dsp);
+}
+
+#[test]
+fn softcore_firmware_moves_the_car_on_the_pipelined_core() {
+    moves_the_car(CoreVariant::Pipe);
+}
+
+fn moves_the_car(core: CoreVariant) {
+    let Some(mut rig) = Rig::boot_on(core) else {
+        return;
+    };
     rig.lbc_up();
     // a few 30 Hz stream frames
     rig.run(CLOCK_HZ as u64 / 5);

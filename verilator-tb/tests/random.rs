@@ -25,6 +25,16 @@ fn random_streams_match_the_model_on_the_sequential_multiplier() {
 /// On the sequential multiplier an interrupt that becomes pending during a product is taken
 /// after it (as during a division). Seed 2001's looped stream raises one during a MULHU.
 #[test]
+fn random_streams_match_the_model_on_the_pipelined_core() {
+    streams_match_the_model(CoreVariant::Pipe, 0..20);
+}
+
+#[test]
+fn random_streams_match_the_model_on_the_pipelined_core_with_the_sequential_multiplier() {
+    streams_match_the_model(CoreVariant::PipeMulSeq, 0..20);
+}
+
+#[test]
 fn sequential_multiplier_finishes_before_an_interrupt() {
     const PASSES: u32 = 20;
     let budget = 12_000 * u64::from(PASSES);
@@ -169,17 +179,18 @@ fn random_streams_in_lockstep_long() {
     long_run(CoreVariant::Dsp, LONG_SEEDS, "lockstep-random");
 }
 
-/// Seeds of the long run on the sequential multiplier's core (a tenth of [`LONG_SEEDS`]).
-const LONG_SEEDS_MULSEQ: std::ops::Range<u64> = 2000..2036;
+/// Seeds of the long run on the HX8K's core (a tenth of [`LONG_SEEDS`]).
+const LONG_SEEDS_HX8K: std::ops::Range<u64> = 2000..2036;
 
-/// The same on the core of the parts without DSP blocks (the HX8K's), over 36 seeds.
+/// The same on the HX8K's core (pipelined, multiplication in the divider's loop), over 36
+/// seeds.
 #[test]
 #[ignore = "long: run by cargo xtask bench --only lockstep"]
-fn random_streams_in_lockstep_long_sequential_multiplier() {
+fn random_streams_in_lockstep_long_hx8k_core() {
     long_run(
-        CoreVariant::MulSeq,
-        LONG_SEEDS_MULSEQ,
-        "lockstep-random-mulseq",
+        CoreVariant::PipeMulSeq,
+        LONG_SEEDS_HX8K,
+        "lockstep-random-hx8k",
     );
 }
 

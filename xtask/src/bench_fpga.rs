@@ -210,11 +210,11 @@ pub fn lockstep() -> Result<String> {
     let random_seq = ignored_test_named(
         "verilator-tb",
         "random",
-        "random_streams_in_lockstep_long_sequential_multiplier",
+        "random_streams_in_lockstep_long_hx8k_core",
         &[],
     )?;
-    let q = figures(&random_seq, "lockstep-random-mulseq")
-        .context("no figures from the random streams on the sequential multiplier")?;
+    let q = figures(&random_seq, "lockstep-random-hx8k")
+        .context("no figures from the random streams on the HX8K's core")?;
     let elf = crate::fw::build("softcore", true)?;
     let firmware = ignored_test_named(
         "verilator-tb",
@@ -251,7 +251,7 @@ pub fn lockstep() -> Result<String> {
     );
     let _ = writeln!(
         md,
-        "| random streams on the HX8K's core (sequential multiplier; 36 seeds x 100 passes; {qc:.0} compressed) | {qi:.0} | 0 | {qw:.0} s |"
+        "| random streams on the HX8K's core (pipelined, sequential multiplier; 36 seeds x 100 passes; {qc:.0} compressed) | {qi:.0} | 0 | {qw:.0} s |"
     );
     let _ = writeln!(
         md,
@@ -264,7 +264,7 @@ pub fn lockstep() -> Result<String> {
     );
     let _ = write!(
         md,
-        "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored --exact random_streams_in_lockstep_long` and `random_streams_in_lockstep_long_sequential_multiplier`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
+        "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored --exact random_streams_in_lockstep_long` and `random_streams_in_lockstep_long_hx8k_core`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
     );
     Ok(md)
 }

@@ -12,7 +12,7 @@ use std::time::Instant;
 use verilator_tb::cosim::LbcCosim;
 use verilator_tb::lockstep::Lockstep;
 use verilator_tb::pipeline;
-use verilator_tb::soc::{Event, Exit, Soc, Uart, CLOCK_HZ};
+use verilator_tb::soc::{CoreVariant, Event, Exit, Soc, Uart, CLOCK_HZ};
 
 #[derive(Debug, Parser)]
 #[command(about = "Run a firmware image on the Verilated softcore SoC")]
@@ -35,11 +35,27 @@ struct Args {
     /// (`verilator_tb::pipeline`; needs `--lbc-emu`).
     #[arg(long, requires = "lbc_emu")]
     pipeline: bool,
+    /// The SoC's core: `dsp` (the reference core), `mulseq` (its multiplication in the
+    /// divider's loop), `pipe` (the pipelined core) or `pipe-mulseq` (the HX8K's).
+    #[arg(long, default_value = "dsp", value_parser = parse_core)]
+    core: CoreVariant,
+}
+
+fn parse_core(s: &str) -> Result<CoreVariant, String> {
+    match s {
+        "dsp" => Ok(CoreVariant::Dsp),
+        "mulseq" => Ok(CoreVariant::MulSeq),
+        "pipe" => Ok(CoreVariant::Pipe),
+        "pipe-mulseq" => Ok(CoreVariant::PipeMulSeq),
+        _ => Err(format!(
+            "unknown core `{s}` (dsp, mulseq, pipe, pipe-mulseq)"
+        )),
+    }
 }
 
 /// Runs the image in lockstep with the golden model.
-fn lockstep(elf: &[u8], max_cycles: u64) -> ExitCode {
-    let mut ls = Lockstep::new();
+fn lockstep(elf: &[u8], max_cycles: u64, core: CoreVariant) -> ExitCode {
+    let mut ls = Lockstep::with_core(core);
     if let Err(e) = ls.load_elf(elf) {
         eprintln!("{e}");
         return ExitCode::from(2);
@@ -139,9 +155,9 @@ fn main() -> ExitCode {
         }
     };
     if args.lockstep {
-        return lockstep(&bytes, args.max_cycles);
+        return lockstep(&bytes, args.max_cycles, args.core);
     }
-    let mut soc = Soc::new();
+    let mut soc = Soc::with_core(args.core);
     if let Err(e) = soc.load_elf(&bytes) {
         eprintln!("{}: {e}", args.elf.display());
         return ExitCode::from(2);

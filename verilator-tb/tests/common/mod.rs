@@ -5,7 +5,7 @@ pub mod stream;
 
 use verilator_tb::isa::{self, reg::*};
 use verilator_tb::lockstep::{Lockstep, Mismatch, Run, Stimulus};
-use verilator_tb::soc::{map, Event, Exit, RxSend, Stamped, Uart, RAM_BASE};
+use verilator_tb::soc::{map, CoreVariant, Event, Exit, RxSend, Stamped, Uart, RAM_BASE};
 
 /// A program assembled at RAM_BASE.
 #[derive(Debug, Default, Clone)]
@@ -53,8 +53,24 @@ pub fn run_pass(prog: &Prog) -> (Run, Lockstep) {
 }
 
 /// Runs `prog` in lockstep with the stimuli, demands a clean exit, and checks the
-/// cycle-accurate model (`soc_model`) against the run (see [`check_model`]).
+/// cycle-accurate model (`soc_model`) against the run (see [`check_model`]). The other core
+/// variants run it too, in lockstep (their cycles differ from the model's).
 pub fn run_with(prog: &Prog, stimuli: &[(u64, Stimulus)]) -> (Run, Lockstep) {
+    for core in CoreVariant::ALL
+        .into_iter()
+        .filter(|c| *c != CoreVariant::Dsp)
+    {
+        let mut ls = Lockstep::with_core(core);
+        ls.load(RAM_BASE, &prog.words).expect("program fits");
+        match ls.run(100_000, 4_000_000, stimuli) {
+            Ok(r) => assert_eq!(
+                r.exit,
+                Some(Exit::Pass),
+                "program did not pass on {core:?}: {r:?}"
+            ),
+            Err(m) => panic!("lockstep mismatch on {core:?}: {}", describe(&m)),
+        }
+    }
     let mut ls = Lockstep::new();
     ls.keep_records();
     ls.load(RAM_BASE, &prog.words).expect("program fits");

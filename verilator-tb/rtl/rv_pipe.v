@@ -1,0 +1,712 @@
+// RV32IMAC + Zicsr machine-mode core, pipelined: the FPGA core variant (`docs/fpga.md`).
+//
+// Four stages, one instruction each:
+//   F  fetch: `f_pc` addresses the instruction memory (the SoC's RAM answers with the 32 bits
+//      at any halfword address in the same cycle); the word is captured into D.
+//   D  decode: a compressed instruction is expanded, the immediate decoded, and the register
+//      file (block RAM, synchronous read) read at the clock edge that ends the stage.
+//   X  execute: operands forwarded from M or from the word written at the edge that began the
+//      cycle; ALU, branches and jumps (resolved here: the instructions fetched behind a taken
+//      one are discarded), CSRs (all in flip-flops), traps and interrupts (taken here, between
+//      instructions), the multiplier, the iterative divider (the pipeline waits), load and
+//      store addresses.
+//   M  memory and write-back: the data bus is driven from M's registers; a loaded word is
+//      aligned and written back at the edge that ends the stage, with every other result; an
+//      atomic read-modify-write takes two cycles here. Every instruction retires in M, in
+//      order, with its RVFI record (registered: valid in the cycle after).
+// An instruction in X that reads the word an instruction in M loads waits one cycle. A store
+// into an instruction already fetched (F, D or X) discards those and fetches them again, so a
+// program sees its own stores as the golden model does.
+//
+// Same ports and SoC timing as `rv_core` (the SoC's memories read on the falling edge);
+// its cycles differ from the cycle-accurate model's, its retirements do not.
+`default_nettype none
+
+module rv_pipe #(
+    parameter [31:0] RESET_PC = 32'h8000_0000,
+    parameter [11:0] FETCH_REGION = 12'h800,
+    parameter integer FETCH_AW = 18,
+    // 0: MUL* in one cycle on a 32x32 multiplier; 1: in the divider's loop (34 cycles)
+    parameter integer MUL_SEQ = 0
+) (
+    input  wire        clk,
+    input  wire        rst,
+
+    output wire [31:0] imem_addr,
+    input  wire [31:0] imem_rdata,
+
+    output wire [31:0] dmem_addr,
+    output wire        dmem_re,
+    output wire [3:0]  dmem_rmask,
+    output wire [3:0]  dmem_wstrb,
+    output wire [31:0] dmem_wdata,
+    input  wire [31:0] dmem_rdata,
+    output wire        dmem_rd_pre,
+    output wire [FETCH_AW-1:0] last_st_word,
+    output wire [31:0] last_st_data,
+    output wire [3:0]  last_st_mask,
+
+    input  wire        irq_software,
+    input  wire        irq_timer,
+    input  wire        irq_external,
+    output wire        sleeping,
+
+    output reg         rvfi_valid,
+    output reg  [63:0] rvfi_order,
+    output reg  [31:0] rvfi_insn,
+    output reg         rvfi_trap,
+    output reg         rvfi_intr,
+    output reg  [31:0] rvfi_pc_rdata,
+    output reg  [31:0] rvfi_pc_wdata,
+    output reg  [4:0]  rvfi_rd_addr,
+    output reg  [31:0] rvfi_rd_wdata,
+    output reg  [31:0] rvfi_mem_addr,
+    output reg  [3:0]  rvfi_mem_rmask,
+    output reg  [3:0]  rvfi_mem_wmask,
+    output reg  [31:0] rvfi_mem_rdata,
+    output reg  [31:0] rvfi_mem_wdata,
+    output reg  [2:0]  rvfi_ext_mip,
+    output reg  [2:0]  rvfi_ext_intr_mip
+);
+
+    // ================================================================ state
+    reg [31:0] regs [0:31];
+    integer k;
+    initial for (k = 0; k < 32; k = k + 1) regs[k] = 32'd0;
+
+    // F
+    reg [31:0] f_pc;
+    // D
+    reg        d_valid;
+    reg [31:0] d_pc;
+    reg [31:0] d_word;
+    // X
+    reg        x_valid;
+    reg [31:0] x_pc;
+    reg [31:0] x_ir;      // expanded
+    reg        x_c;       // compressed (2 bytes)
+    reg [31:0] x_imm;
+    reg [31:0] x_raw;     // as fetched, for RVFI
+    reg [31:0] rf_a, rf_b;
+    reg        byp_a, byp_b;
+    reg [31:0] byp_val;
+    // M
+    reg        m_valid;
+    reg        m_trap;    // a trap record only
+    reg        m_intr;
+    reg [2:0]  m_mip, m_intr_mip;
+    reg [31:0] m_raw, m_pc, m_next;
+    reg [4:0]  m_rd;      // 0: no write
+    reg        m_load;    // rd gets the loaded word (loads, LR, AMOs)
+    reg [2:0]  m_f3;
+    reg [4:0]  m_f5;
+    reg        m_amo, m_amo2;
+    reg [31:0] m_result;  // rd for the others; the AMO's rs2
+    reg [31:0] m_addr;
+    reg        m_rd_mem;  // reads memory (dmem_re)
+    reg [3:0]  m_rmask, m_wstrb;
+    reg [31:0] m_wdata;
+    reg [31:0] m_loaded;  // an AMO's loaded word, from its first cycle
+    reg        m_cnt_wr;  // writes a counter CSR at retirement
+    reg [1:0]  m_cnt_sel; // {instret, high}
+    reg [31:0] m_cnt_val;
+    // CSRs
+    reg        mstatus_mie, mstatus_mpie;
+    reg        mie_e, mie_t, mie_s;
+    reg        mcause_int;
+    reg [3:0]  mcause_code;
+    reg [31:0] mscratch, mepc, mtvec, mtval;
+    reg [63:0] mcycle, minstret;
+    reg        res_valid;
+    reg [31:0] res_addr;
+    reg        intr_pend;  // the next record is an interrupt handler's first instruction
+    reg [2:0]  intr_lines;
+    // divider (and the sequential multiplier)
+    reg        md_busy;
+    reg [5:0]  md_cnt;
+    reg [31:0] md_quo, md_rem, md_div;
+    // the last store into the fetch memory (for RAMs with a write buffer)
+    reg [FETCH_AW-1:0] st_w;
+    reg [3:0]  st_m;
+    reg [31:0] st_d;
+
+    // ================================================================ D: expansion, decode
+    wire [31:0] fr = d_word;
+    wire        fi_c = fr[1:0] != 2'b11;
+    wire [15:0] c = fr[15:0];
+    wire [2:0]  cr_d = c[4:2], cr_s = c[9:7];
+    wire        c_nz6 = c[12] || c[6:2] != 5'd0;
+    wire [4:0]  ck = {c[1:0], c[15:13]};
+    wire        f_a4  = ck == 5'b00_000 && c[12:5] != 8'd0;
+    wire        f_lw  = ck == 5'b00_010;
+    wire        f_sw  = ck == 5'b00_110;
+    wire        f_ad  = ck == 5'b01_000;
+    wire        f_j   = c[1:0] == 2'b01 && c[14:13] == 2'b01;
+    wire        f_li  = ck == 5'b01_010;
+    wire        f_a16 = ck == 5'b01_011 && c_nz6 && c[11:7] == 5'd2;
+    wire        f_lui = ck == 5'b01_011 && c_nz6 && c[11:7] != 5'd2;
+    wire        f_shi = ck == 5'b01_100 && c[11:10] != 2'b11 && (!c[12] || c[11]);
+    wire        f_alu = ck == 5'b01_100 && c[11:10] == 2'b11 && !c[12];
+    wire        f_b   = c[1:0] == 2'b01 && c[15:14] == 2'b11;
+    wire        f_sll = ck == 5'b10_000 && !c[12];
+    wire        f_lsp = ck == 5'b10_010 && c[11:7] != 5'd0;
+    wire        f_mv  = ck == 5'b10_100 && c[6:2] != 5'd0;
+    wire        f_jr  = ck == 5'b10_100 && c[6:2] == 5'd0 && c[11:7] != 5'd0;
+    wire        f_eb  = ck == 5'b10_100 && c[12:2] == 11'h400;
+    wire        f_ssp = ck == 5'b10_110;
+    wire        c_legal = f_a4 | f_lw | f_sw | f_ad | f_j | f_li | f_a16 | f_lui | f_shi |
+                          f_alu | f_b | f_sll | f_lsp | f_mv | f_jr | f_eb | f_ssp;
+    wire [31:0] cx =
+        ({32{f_a4}}  & {12'd0, 5'd2, 3'b000, 2'b01, cr_d, 7'b0010011}) |
+        ({32{f_lw}}  & {12'd0, 2'b01, cr_s, 3'b010, 2'b01, cr_d, 7'b0000011}) |
+        ({32{f_sw}}  & {7'd0, 2'b01, cr_d, 2'b01, cr_s, 3'b010, 5'd0, 7'b0100011}) |
+        ({32{f_ad}}  & {12'd0, c[11:7], 3'b000, c[11:7], 7'b0010011}) |
+        ({32{f_j}}   & {20'd0, 4'd0, !c[15], 7'b1101111}) |
+        ({32{f_li}}  & {12'd0, 5'd0, 3'b000, c[11:7], 7'b0010011}) |
+        ({32{f_a16}} & {12'd0, 5'd2, 3'b000, 5'd2, 7'b0010011}) |
+        ({32{f_lui}} & {20'd0, c[11:7], 7'b0110111}) |
+        ({32{f_shi}} & {1'b0, c[10] & !c[11], 10'd0, 2'b01, cr_s, 1'b1, c[11], 1'b1,
+                        2'b01, cr_s, 7'b0010011}) |
+        ({32{f_alu}} & {1'b0, c[6:5] == 2'b00, 5'd0, 2'b01, cr_d, 2'b01, cr_s,
+                        c[6] | c[5], c[6], c[6] & c[5], 2'b01, cr_s, 7'b0110011}) |
+        ({32{f_b}}   & {12'd0, 2'b01, cr_s, 2'b00, c[13], 5'd0, 7'b1100011}) |
+        ({32{f_sll}} & {12'd0, c[11:7], 3'b001, c[11:7], 7'b0010011}) |
+        ({32{f_lsp}} & {12'd0, 5'd2, 3'b010, c[11:7], 7'b0000011}) |
+        ({32{f_mv}}  & {7'd0, c[6:2], c[12] ? c[11:7] : 5'd0, 3'b000, c[11:7], 7'b0110011}) |
+        ({32{f_jr}}  & {12'd0, c[11:7], 3'b000, 4'd0, c[12], 7'b1100111}) |
+        ({32{f_eb}}  & 32'h0010_0073) |
+        ({32{f_ssp}} & {7'd0, c[6:2], 5'd2, 3'b010, 5'd0, 7'b0100011}) |
+        ({32{!c_legal}} & {16'd0, c});
+    wire [6:0]  fo = fr[6:0];
+    wire [31:0] imm32 =
+        (!fo[6] && fo[4] && fo[2]) ? {fr[31:12], 12'd0} :
+        (fo[6] && fo[3]) ? {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0} :
+        (fo[6] && !fo[4] && !fo[2]) ?
+            {{19{fr[31]}}, fr[31], fr[7], fr[30:25], fr[11:8], 1'b0} :
+        (!fo[6] && fo[5] && !fo[4]) ?
+            (fo[2] ? 32'd0 : {{20{fr[31]}}, fr[31:25], fr[11:7]}) :
+        {{20{fr[31]}}, fr[31:20]};
+    wire [31:0] immc =
+        ({32{f_a4}}  & {22'd0, c[10:7], c[12:11], c[5], c[6], 2'b00}) |
+        ({32{f_lw | f_sw}} & {25'd0, c[5], c[12:10], c[6], 2'b00}) |
+        ({32{f_ad | f_li | f_shi | f_sll}} & {{27{c[12]}}, c[6:2]}) |
+        ({32{f_a16}} & {{23{c[12]}}, c[4:3], c[5], c[2], c[6], 4'd0}) |
+        ({32{f_lui}} & {{15{c[12]}}, c[6:2], 12'd0}) |
+        ({32{f_j}}   & {{21{c[12]}}, c[8], c[10:9], c[6], c[7], c[2], c[11], c[5:3], 1'b0}) |
+        ({32{f_b}}   & {{24{c[12]}}, c[6:5], c[2], c[11:10], c[4:3], 1'b0}) |
+        ({32{f_lsp}} & {24'd0, c[3:2], c[12], c[6:4], 2'b00}) |
+        ({32{f_ssp}} & {24'd0, c[8:7], c[12:9], 2'b00});
+    wire [31:0] fi = fi_c ? cx : fr;
+
+    // ================================================================ X: decode
+    wire [31:0] insn   = x_ir;
+    wire [6:0]  opcode = insn[6:0];
+    wire [4:0]  rd     = insn[11:7];
+    wire [4:0]  rs1    = insn[19:15];
+    wire [4:0]  rs2    = insn[24:20];
+    wire [2:0]  f3     = insn[14:12];
+    wire [6:0]  f7     = insn[31:25];
+    wire [4:0]  f5     = insn[31:27];
+
+    wire is_lui    = opcode == 7'b0110111;
+    wire is_auipc  = opcode == 7'b0010111;
+    wire is_jal    = opcode == 7'b1101111;
+    wire is_jalr   = opcode == 7'b1100111 && f3 == 3'd0;
+    wire is_branch = opcode == 7'b1100011 && f3[2:1] != 2'b01;
+    wire is_load   = opcode == 7'b0000011 && f3 != 3'd3 && f3[2:1] != 2'b11;
+    wire is_store  = opcode == 7'b0100011 && f3[2] == 1'b0 && f3 != 3'd3;
+    wire is_opimm  = opcode == 7'b0010011 &&
+                     (f3 == 3'd1 ? f7 == 7'd0 :
+                      f3 == 3'd5 ? (f7 == 7'd0 || f7 == 7'h20) : 1'b1);
+    wire is_op     = opcode == 7'b0110011 &&
+                     (f7 == 7'd0 || (f7 == 7'h20 && (f3 == 3'd0 || f3 == 3'd5)));
+    wire is_muldiv = opcode == 7'b0110011 && f7 == 7'd1;
+    wire is_fence  = opcode == 7'b0001111 && f3 == 3'd0;
+    wire is_ecall  = insn == 32'h0000_0073;
+    wire is_ebreak = insn == 32'h0010_0073;
+    wire is_mret   = insn == 32'h3020_0073;
+    wire is_wfi    = insn == 32'h1050_0073;
+    wire is_csr    = opcode == 7'b1110011 && f3 != 3'd0 && f3 != 3'd4;
+    wire amo_op_ok = f5 == 5'b00010 ? rs2 == 5'd0 :
+                     (f5 == 5'b00011 || f5 == 5'b00001 || f5 == 5'b00000 || f5 == 5'b00100 ||
+                      f5 == 5'b01100 || f5 == 5'b01000 || f5 == 5'b10000 || f5 == 5'b10100 ||
+                      f5 == 5'b11000 || f5 == 5'b11100);
+    wire is_amo_any = opcode == 7'b0101111 && f3 == 3'd2 && amo_op_ok;
+    wire is_lr     = is_amo_any && f5 == 5'b00010;
+    wire is_sc     = is_amo_any && f5 == 5'b00011;
+    wire is_amo    = is_amo_any && !is_lr && !is_sc;
+    wire is_div    = is_muldiv && f3[2];
+    wire is_iter   = is_muldiv && (f3[2] || MUL_SEQ != 0);
+    wire legal = is_lui | is_auipc | is_jal | is_jalr | is_branch | is_load | is_store |
+                 is_opimm | is_op | is_muldiv | is_fence | is_ecall | is_ebreak | is_mret |
+                 is_wfi | is_csr | is_amo_any;
+
+    // ================================================================ X: operands
+    // the instruction in M writes rd at the end of this cycle: forwarded (a loaded word is
+    // not there yet: the instruction waits)
+    wire m_writes = m_valid && !m_trap && m_rd != 5'd0;
+    wire fwd_a = m_writes && m_rd == rs1;
+    wire fwd_b = m_writes && m_rd == rs2;
+    wire [31:0] rs1v = fwd_a ? m_result : byp_a ? byp_val : rf_a;
+    wire [31:0] rs2v = fwd_b ? m_result : byp_b ? byp_val : rf_b;
+    wire load_use = (fwd_a || fwd_b) && m_load;
+
+    // ================================================================ X: ALU
+    wire op_u = !opcode[6] && opcode[4] && opcode[2];
+    wire op_j = opcode[6] && opcode[3];
+    wire op_b = opcode[6] && !opcode[4] && !opcode[2];
+    wire op_s = !opcode[6] && opcode[5] && !opcode[4];
+    wire op_r = opcode == 7'b0110011;
+    wire op_amo = op_s && opcode[2];
+    wire [31:0] imm = x_imm;
+    wire        ex_pc  = (op_u && !opcode[5]) || op_j || op_b;
+    wire        do_sub = op_r && f7[5];
+    wire [31:0] add_a  = ex_pc ? x_pc : (op_u && opcode[5]) ? 32'd0 : rs1v;
+    wire [31:0] alu_b  = op_r ? rs2v : imm;
+    wire [31:0] add_b  = (op_amo ? 32'd0 : alu_b) ^ {32{do_sub}};
+    wire [31:0] sum    = add_a + add_b + {31'd0, do_sub};
+
+    wire [31:0] cmp_b      = is_branch ? rs2v : alu_b;
+    wire        cmp_signed = is_branch ? !f3[1] : !f3[0];
+    wire [32:0] cmp_diff   = {cmp_signed & rs1v[31], rs1v} - {cmp_signed & cmp_b[31], cmp_b};
+    wire        lt         = cmp_diff[32];
+    wire        eq         = rs1v == cmp_b;
+    wire        br_taken   = f3[2] ? lt ^ f3[0] : eq ^ f3[0];
+    wire [4:0]  shamt      = alu_b[4:0];
+    reg  [31:0] logic_out;
+    always @(*) begin
+        case (f3)
+            3'd4: logic_out = rs1v ^ alu_b;
+            3'd6: logic_out = rs1v | alu_b;
+            3'd7: logic_out = rs1v & alu_b;
+            default: logic_out = {31'd0, lt};
+        endcase
+    end
+
+    // multiply, divide, shifts (as rv_core: the shifts on the multiplier unless MUL_SEQ)
+    wire        is_shift = (is_opimm | is_op) && f3[1:0] == 2'b01;
+    wire        sh_zero  = shamt == 5'd0;
+    wire        sign_a   = is_muldiv ? (f3[2] ? !f3[0] : f3[1] ^ f3[0]) :
+                           is_shift && f3[2] && f7[5] && !sh_zero;
+    wire        sign_b   = is_muldiv && (f3[2] ? !f3[0] : f3[1:0] == 2'd1);
+    wire        neg_a    = sign_a && rs1v[31];
+    wire        neg_b    = sign_b && rs2v[31];
+    wire [31:0] abs_a    = (rs1v ^ {32{neg_a}}) + {31'd0, neg_a};
+    wire [31:0] abs_b    = (rs2v ^ {32{neg_b}}) + {31'd0, neg_b};
+    wire [4:0]  sh_pow   = f3[2] ? 5'd0 - shamt : shamt;
+    wire [31:0] mul_b    = is_shift ? 32'd1 << sh_pow : abs_b;
+    wire [63:0] prod_1c  = {32'd0, abs_a} * {32'd0, mul_b};
+    wire [63:0] prod_u   = MUL_SEQ != 0 ? {md_rem, md_quo} : prod_1c;
+    wire        prod_neg = neg_a ^ neg_b;
+    wire        lo_zero  = prod_u[31:0] == 32'd0;
+    wire        use_lo   = is_shift ? !f3[2] || sh_zero : f3[1:0] == 2'd0;
+    wire [32:0] md_sh  = {md_rem, md_quo[31]};
+    wire [32:0] md_dif = md_sh - {1'b0, md_div};
+    wire [32:0] mq_sum = {1'b0, md_rem} + (md_quo[0] ? {1'b0, md_div} : 33'd0);
+    wire [31:0] sh_out = !f3[2] ? rs1v << shamt :
+                         f7[5] ? $unsigned($signed(rs1v) >>> shamt) : rs1v >> shamt;
+    wire        md_done = md_busy && md_cnt == 6'd32;
+    wire [31:0] md_res = f3[1] ? md_rem : md_quo;
+    wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
+    wire [31:0] ng_in  = is_div ? md_res : prod_u[63:32];
+    wire        ng     = is_div ? md_neg : prod_neg;
+    wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, is_div ? md_neg : prod_neg & lo_zero};
+    wire [31:0] mul_out = MUL_SEQ != 0 && is_shift ? sh_out :
+                          use_lo && !is_div ? prod_u[31:0] : ng_out;
+
+    // memory access (address and checks in X)
+    wire [31:0] ls_addr = sum;
+    wire        ls_misaligned = is_amo_any ? ls_addr[1:0] != 2'd0 :
+                                f3[1:0] == 2'd1 ? ls_addr[0] :
+                                f3[1:0] == 2'd2 ? ls_addr[1:0] != 2'd0 : 1'b0;
+    wire [3:0]  st_mask = f3[1:0] == 2'd0 ? (4'b0001 << ls_addr[1:0]) :
+                          f3[1:0] == 2'd1 ? (4'b0011 << ls_addr[1:0]) : 4'b1111;
+    wire [31:0] st_data = f3[1:0] == 2'd0 ? {4{rs2v[7:0]}} :
+                          f3[1:0] == 2'd1 ? {2{rs2v[15:0]}} : rs2v;
+    wire        sc_ok = res_valid && res_addr == ls_addr;
+
+    // ================================================================ X: CSRs
+    wire [11:0] csr_addr = insn[31:20];
+    // The interrupt lines, registered: the devices' logic behind them stays out of the
+    // execute stage's cycle (an interrupt is seen one cycle later).
+    reg  [2:0]  lines;
+    always @(posedge clk) lines <= {irq_external, irq_timer, irq_software};
+    wire [31:0] mip_v    = {20'd0, lines[2], 3'd0, lines[1], 3'd0, lines[0], 3'd0};
+    wire [31:0] mie_v    = {20'd0, mie_e, 3'd0, mie_t, 3'd0, mie_s, 3'd0};
+    // minstret as an instruction here sees it: the one in M retires before it
+    wire        m_counts = m_valid && !m_trap && !(m_amo && !m_amo2);
+    wire [63:0] instret_now = minstret + {63'd0, m_counts};
+    reg  [31:0] csr_rdata;
+    reg         csr_exists;
+    always @(*) begin
+        csr_exists = 1'b1;
+        case (csr_addr)
+            12'h300: csr_rdata = {19'd0, 2'b11, 3'd0, mstatus_mpie, 3'd0, mstatus_mie, 3'd0};
+            12'h301: csr_rdata = 32'h4000_1105;
+            12'h304: csr_rdata = mie_v;
+            12'h305: csr_rdata = mtvec;
+            12'h310: csr_rdata = 32'd0;
+            12'h340: csr_rdata = mscratch;
+            12'h341: csr_rdata = mepc;
+            12'h342: csr_rdata = {mcause_int, 27'd0, mcause_code};
+            12'h343: csr_rdata = mtval;
+            12'h344: csr_rdata = mip_v;
+            12'hb00, 12'hc00: csr_rdata = mcycle[31:0];
+            12'hb80, 12'hc80: csr_rdata = mcycle[63:32];
+            12'hb02, 12'hc02: csr_rdata = instret_now[31:0];
+            12'hb82, 12'hc82: csr_rdata = instret_now[63:32];
+            12'hf11, 12'hf12, 12'hf13, 12'hf14, 12'hf15: csr_rdata = 32'd0;
+            default: begin
+                csr_rdata = 32'd0;
+                csr_exists = 1'b0;
+            end
+        endcase
+    end
+    wire        csr_writes = f3[1:0] == 2'b01 || rs1 != 5'd0;
+    wire [31:0] csr_src    = f3[2] ? {27'd0, rs1} : rs1v;   // CSRR*I: the immediate
+    wire        c_rw       = f3[1:0] == 2'b01, c_rc = f3[1:0] == 2'b11;
+    wire [31:0] csr_wdata  = (csr_rdata & ~({32{c_rw}} | ({32{c_rc}} & csr_src))) |
+                             (csr_src & ~{32{c_rc}});
+    wire        csr_illegal = !csr_exists || (csr_addr[11:10] == 2'b11 && csr_writes);
+    wire        csr_cnt    = csr_addr[11] && csr_addr[10:8] != 3'b111;  // mcycle(h), minstret(h)
+
+    // ================================================================ X: control
+    wire [31:0] pc_plus = x_pc + {29'd0, !x_c, x_c, 1'b0};
+    wire jump = is_jal | is_jalr | (is_branch && br_taken);
+    wire [31:0] next_pc = jump ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
+
+    wire exc_illegal = !legal || (is_csr && csr_illegal) || insn[1:0] != 2'b11;
+    wire exc_load    = !exc_illegal && (is_load || is_lr) && ls_misaligned;
+    wire exc_store   = !exc_illegal && (is_store || is_sc || is_amo) && ls_misaligned;
+    wire exc_misal   = exc_load | exc_store;
+    wire exc = exc_illegal | exc_misal | is_ecall | is_ebreak;
+    wire [3:0] exc_cause = exc_illegal ? 4'd2 : exc_load ? 4'd4 :
+                           exc_store ? 4'd6 : is_ebreak ? 4'd3 : 4'd11;
+    wire [31:0] exc_tval = exc_illegal ? insn : exc_misal ? ls_addr : 32'd0;
+
+    wire [2:0]  irq_pend  = lines & {mie_e, mie_t, mie_s};
+    wire [3:0]  irq_cause = irq_pend[2] ? 4'd11 : irq_pend[0] ? 4'd3 : 4'd7;
+
+    // A store landing at the end of this cycle into an instruction already fetched: those
+    // are fetched again (X, D and F discarded, F restarts at the oldest).
+    wire        st_now  = m_valid && m_wstrb != 4'd0 && m_addr[31:20] == FETCH_REGION;
+    wire [FETCH_AW-1:0] st_word = m_addr[FETCH_AW+1:2];
+    function automatic hits(input [31:0] pc);
+        hits = pc[31:20] == FETCH_REGION &&
+               (pc[FETCH_AW+1:2] == st_word ||
+                pc[FETCH_AW+1:2] + {{(FETCH_AW-1){1'b0}}, 1'b1} == st_word);
+    endfunction
+    wire        smc = st_now && ((x_valid && hits(x_pc)) || (d_valid && hits(d_pc)) ||
+                                 hits(f_pc));
+    wire [31:0] smc_pc = x_valid ? x_pc : d_valid ? d_pc : f_pc;
+
+    // M accepts an instruction at the end of this cycle unless an AMO is in its first half
+    wire m_free = !(m_valid && m_amo && !m_amo2);
+    // a counter CSR write retires in M: a CSR access waits for it
+    wire csr_wait = is_csr && m_valid && m_cnt_wr;
+
+    wire x_live    = x_valid && !smc && !rst;
+    wire irq_take  = x_live && mstatus_mie && irq_pend != 3'd0 && !md_busy && !is_wfi;
+    wire x_exc     = x_live && !irq_take && exc;
+    // the instruction can complete this cycle
+    wire iter_wait = is_iter && !md_done;
+    wire wfi_wait  = is_wfi && irq_pend == 3'd0;
+    wire x_stall   = load_use || !m_free || iter_wait || wfi_wait || csr_wait;
+    wire x_commit  = x_live && !irq_take && !exc && !x_stall;
+    wire x_trap    = irq_take || (x_exc && m_free);   // an exception's record needs M
+    wire [31:0] trap_vec = {mtvec[31:6],
+                            mtvec[5:2] | (irq_take && mtvec[0] ? irq_cause : 4'd0), 2'b00};
+    wire redirect_x = x_trap || (x_commit && (jump || is_mret));
+    wire [31:0] redirect_pc = smc ? smc_pc : x_trap ? trap_vec : next_pc;
+    wire redirect = smc || redirect_x;
+
+    // X result (everything but loaded words)
+    wire t_sum   = is_lui || is_auipc || ((is_opimm || is_op) && f3 == 3'd0);
+    wire t_link  = is_jal || is_jalr;
+    wire t_logic = (is_opimm || is_op) && f3 != 3'd0 && f3[1:0] != 2'b01;
+    wire t_mul   = (is_muldiv && !f3[2]) || is_shift;
+    wire [31:0] x_result =
+        ({32{t_sum}} & sum) | ({32{t_link}} & pc_plus) | ({32{t_logic}} & logic_out) |
+        ({32{t_mul | is_div}} & mul_out) | ({32{is_csr}} & csr_rdata) |
+        {31'd0, is_sc && !sc_ok};
+    wire writes_rd = is_lui | is_auipc | is_jal | is_jalr | is_load | is_opimm | is_op |
+                     is_muldiv | is_csr | is_amo_any;
+    wire [4:0] rd_eff = writes_rd ? rd : 5'd0;
+    wire x_mem_rd = is_load | is_lr | is_amo;
+    wire x_mem_wr = is_store | is_amo | (is_sc && sc_ok);
+
+    // CSR writes (at commit). WARL as rv_core: mepc bit 0 reads zero; mtvec bit 1 reads zero,
+    // and a vectored table is 64-byte aligned.
+    wire wr_csr = x_commit && is_csr && csr_writes;
+    wire [31:0] csr_wval = {csr_wdata[31:6],
+                            csr_wdata[5:2] & ~{4{csr_addr == 12'h305 && csr_wdata[0]}},
+                            csr_wdata[1] & !(csr_addr == 12'h305),
+                            csr_wdata[0] & !(csr_addr == 12'h341)};
+
+    // ================================================================ D and F
+    // X takes D's instruction when X is empty or its instruction leaves
+    wire x_leaves = !x_valid || x_commit || x_trap || smc;
+    wire d_to_x   = d_valid && x_leaves && !redirect;
+    wire d_free   = !d_valid || d_to_x;
+    wire f_to_d   = d_free && !redirect;
+    // the next fetch address: both sums from the register, the fetched word picks one
+    wire [31:0] f_pc2 = f_pc + 32'd2, f_pc4 = f_pc + 32'd4;
+    wire [31:0] f_next = imem_rdata[1:0] == 2'b11 ? f_pc4 : f_pc2;
+    assign imem_addr = f_pc;
+
+    // register-file read ports: the instruction entering X, or X's again while it stays
+    wire       x_stays = x_valid && !x_leaves;
+    wire [4:0] port_a = x_stays ? rs1 : fi[19:15];
+    wire [4:0] port_b = x_stays ? rs2 : fi[24:20];
+
+    // ================================================================ M
+    wire [4:0]  ld_shift = {m_addr[1:0], 3'd0};
+    wire [31:0] ld_shifted = dmem_rdata >> ld_shift;
+    reg  [31:0] load_out;
+    always @(*) begin
+        case (m_f3)
+            3'd0: load_out = {{24{ld_shifted[7]}}, ld_shifted[7:0]};
+            3'd1: load_out = {{16{ld_shifted[15]}}, ld_shifted[15:0]};
+            3'd4: load_out = {24'd0, ld_shifted[7:0]};
+            3'd5: load_out = {16'd0, ld_shifted[15:0]};
+            default: load_out = dmem_rdata;
+        endcase
+    end
+    // the AMO's new word, from the word loaded in its first cycle and rs2
+    wire        amo_signed = !m_f5[3];
+    wire [32:0] amo_diff = {amo_signed & m_loaded[31], m_loaded} -
+                           {amo_signed & m_result[31], m_result};
+    wire        amo_lt = amo_diff[32];
+    wire [31:0] amo_out = m_f5[4] ? ((amo_lt ^ m_f5[2]) ? m_loaded : m_result) :
+                          m_f5[3:2] == 2'b01 ? m_loaded ^ m_result :
+                          m_f5[3:2] == 2'b10 ? m_loaded | m_result :
+                          m_f5[3:2] == 2'b11 ? m_loaded & m_result :
+                          m_f5[0] ? m_result : m_loaded + m_result;
+
+    wire m_act   = m_valid && !m_trap && !rst;
+    wire m_done  = m_valid && !(m_amo && !m_amo2);   // retires at the end of this cycle
+    assign dmem_addr   = {m_addr[31:2], 2'b00};
+    assign dmem_re     = m_act && m_rd_mem && !(m_amo && m_amo2);
+    assign dmem_rd_pre = m_valid && m_rd_mem && !(m_amo && m_amo2);
+    assign dmem_rmask  = m_act ? m_rmask : 4'd0;
+    assign dmem_wstrb  = m_act && (!m_amo || m_amo2) ? m_wstrb : 4'd0;
+    assign dmem_wdata  = m_amo ? amo_out : m_wdata;
+    assign last_st_word = st_w;
+    assign last_st_data = st_d;
+    assign last_st_mask = st_m;
+
+    wire        wb_en   = m_act && m_done && m_rd != 5'd0;
+    wire [31:0] wb_val  = m_load ? load_out : m_result;
+    assign sleeping = !rst && x_valid && is_wfi && irq_pend == 3'd0;
+
+    // ================================================================ clocked
+    always @(posedge clk) begin
+        // register file (write at the end of M; reads for the instruction entering X)
+        if (wb_en) regs[m_rd] <= wb_val;
+        rf_a <= regs[port_a];
+        rf_b <= regs[port_b];
+        byp_a <= wb_en && m_rd == port_a;
+        byp_b <= wb_en && m_rd == port_b;
+        byp_val <= wb_val;
+    end
+
+    always @(posedge clk) begin
+        rvfi_valid <= 1'b0;
+        mcycle <= mcycle + 64'd1;
+        if (rst) begin
+            f_pc <= RESET_PC;
+            d_valid <= 1'b0;
+            x_valid <= 1'b0;
+            m_valid <= 1'b0;
+            mstatus_mie <= 1'b0;
+            mstatus_mpie <= 1'b0;
+            mie_e <= 1'b0;
+            mie_t <= 1'b0;
+            mie_s <= 1'b0;
+            mcause_int <= 1'b0;
+            mcause_code <= 4'd0;
+            mscratch <= 32'd0;
+            mepc <= 32'd0;
+            mtvec <= 32'd0;
+            mtval <= 32'd0;
+            mcycle <= 64'd0;
+            minstret <= 64'd0;
+            res_valid <= 1'b0;
+            res_addr <= 32'd0;
+            intr_pend <= 1'b0;
+            intr_lines <= 3'd0;
+            md_busy <= 1'b0;
+            md_cnt <= 6'd0;
+            rvfi_order <= 64'd0;
+            m_amo2 <= 1'b0;
+        end else begin
+            // ---------------------------------------------------- F, D
+            if (redirect) f_pc <= redirect_pc;
+            else if (f_to_d) f_pc <= f_next;
+            if (f_to_d) begin
+                d_valid <= 1'b1;
+                d_pc <= f_pc;
+                d_word <= imem_rdata;
+            end else if (redirect || d_to_x) begin
+                d_valid <= 1'b0;
+            end
+
+            // ---------------------------------------------------- X
+            if (d_to_x) begin
+                x_valid <= 1'b1;
+                x_pc <= d_pc;
+                x_ir <= fi;
+                x_c <= fi_c;
+                x_imm <= fi_c ? immc : imm32;
+                x_raw <= fi_c ? {16'd0, c} : fr;
+            end else if (x_leaves) begin
+                x_valid <= 1'b0;
+            end
+            // the divider runs while the instruction waits in X (not while it waits for M)
+            if (smc || !x_valid || irq_take) begin
+                md_busy <= 1'b0;
+            end else if (is_iter && !exc) begin
+                if (!md_busy && !load_use) begin
+                    md_busy <= 1'b1;
+                    md_cnt <= 6'd0;
+                    md_quo <= abs_a;
+                    md_rem <= 32'd0;
+                    md_div <= abs_b;
+                end else if (md_busy && !md_done) begin
+                    md_cnt <= md_cnt + 6'd1;
+                    if (MUL_SEQ == 0 || is_div) begin
+                        md_quo <= {md_quo[30:0], !md_dif[32]};
+                        md_rem <= md_dif[32] ? md_sh[31:0] : md_dif[31:0];
+                    end else begin
+                        md_quo <= {mq_sum[0], md_quo[31:1]};
+                        md_rem <= mq_sum[32:1];
+                    end
+                end else if (x_commit) begin
+                    md_busy <= 1'b0;
+                end
+            end
+
+            if (x_trap) begin
+                mcause_int <= irq_take;
+                mcause_code <= irq_take ? irq_cause : exc_cause;
+                mstatus_mpie <= mstatus_mie;
+                mstatus_mie <= 1'b0;
+                mepc <= x_pc;
+                mtval <= irq_take ? 32'd0 : exc_tval;
+                if (irq_take) begin
+                    intr_pend <= 1'b1;
+                    intr_lines <= lines;
+                end
+            end
+            if (x_commit) begin
+                if (is_mret) begin
+                    mstatus_mie <= mstatus_mpie;
+                    mstatus_mpie <= 1'b1;
+                end
+                if (is_lr) begin
+                    res_valid <= 1'b1;
+                    res_addr <= ls_addr;
+                end
+                if (is_sc || is_amo) res_valid <= 1'b0;
+                if (wr_csr) begin
+                    case (csr_addr)
+                        12'h300: begin
+                            mstatus_mie <= csr_wdata[3];
+                            mstatus_mpie <= csr_wdata[7];
+                        end
+                        12'h304: begin
+                            mie_e <= csr_wdata[11];
+                            mie_t <= csr_wdata[7];
+                            mie_s <= csr_wdata[3];
+                        end
+                        12'h305: mtvec <= csr_wval;
+                        12'h340: mscratch <= csr_wval;
+                        12'h341: mepc <= csr_wval;
+                        12'h342: begin
+                            mcause_int <= csr_wdata[31];
+                            mcause_code <= csr_wdata[3:0];
+                        end
+                        12'h343: mtval <= csr_wval;
+                        12'hb00: mcycle[31:0] <= csr_wdata;
+                        12'hb80: mcycle[63:32] <= csr_wdata;
+                        default: ;
+                    endcase
+                end
+            end
+
+            // ---------------------------------------------------- X -> M
+            if (m_valid && m_amo && !m_amo2) begin
+                // the AMO's first cycle: the word is loaded; the store follows
+                m_amo2 <= 1'b1;
+                m_loaded <= dmem_rdata;
+            end else if (x_commit || (x_exc && m_free)) begin
+                m_valid <= 1'b1;
+                m_trap <= x_exc;
+                m_intr <= intr_pend;
+                m_mip <= lines;
+                m_intr_mip <= intr_pend ? intr_lines : 3'd0;
+                m_raw <= x_raw;
+                m_pc <= x_pc;
+                m_next <= x_exc ? trap_vec : next_pc;
+                m_rd <= x_exc ? 5'd0 : rd_eff;
+                m_load <= x_mem_rd;
+                m_f3 <= f3;
+                m_f5 <= f5;
+                m_amo <= !x_exc && is_amo;
+                m_amo2 <= 1'b0;
+                m_result <= is_amo ? rs2v : x_result;
+                m_addr <= ls_addr;
+                m_rd_mem <= !x_exc && x_mem_rd;
+                m_rmask <= x_exc || !x_mem_rd ? 4'd0 : is_load ? st_mask : 4'b1111;
+                m_wstrb <= x_exc || !x_mem_wr ? 4'd0 : is_store ? st_mask : 4'b1111;
+                m_wdata <= st_data;
+                m_cnt_wr <= !x_exc && is_csr && csr_writes && csr_cnt;
+                m_cnt_sel <= {csr_addr[1], csr_addr[7]};
+                m_cnt_val <= csr_wdata;
+                intr_pend <= 1'b0;
+            end else if (m_done) begin
+                m_valid <= 1'b0;
+            end
+
+            // ---------------------------------------------------- M: retirement
+            if (m_done) begin
+                if (!m_trap) begin
+                    if (m_cnt_wr && m_cnt_sel[1]) begin
+                        // written minstret: the increment, then the written half
+                        if (m_cnt_sel[0])
+                            minstret <= {m_cnt_val, minstret[31:0] + 32'd1};
+                        else
+                            minstret <= {minstret[63:32] + {31'd0, &minstret[31:0]},
+                                         m_cnt_val};
+                    end else begin
+                        minstret <= minstret + 64'd1;
+                    end
+                end
+                if (st_now) begin
+                    st_w <= st_word;
+                    st_m <= m_wstrb;
+                    st_d <= m_amo ? amo_out : m_wdata;
+                end
+                rvfi_valid <= 1'b1;
+                rvfi_order <= rvfi_order + 64'd1;
+                rvfi_insn <= m_raw;
+                rvfi_trap <= m_trap;
+                rvfi_intr <= m_intr;
+                rvfi_ext_mip <= m_mip;
+                rvfi_ext_intr_mip <= m_intr_mip;
+                rvfi_pc_rdata <= m_pc;
+                rvfi_pc_wdata <= m_next;
+                rvfi_rd_addr <= m_rd;
+                rvfi_rd_wdata <= m_rd != 5'd0 ? wb_val : 32'd0;
+                rvfi_mem_addr <= !m_trap && (m_rd_mem || m_wstrb != 4'd0) ? dmem_addr : 32'd0;
+                rvfi_mem_rmask <= m_trap ? 4'd0 : m_rmask;
+                rvfi_mem_wmask <= m_trap ? 4'd0 : m_wstrb;
+                rvfi_mem_rdata <= !m_trap && m_rd_mem ? dmem_rdata : 32'd0;
+                rvfi_mem_wdata <= !m_trap && m_wstrb != 4'd0 ? dmem_wdata : 32'd0;
+            end
+        end
+    end
+
+endmodule
+
+`default_nettype wire
