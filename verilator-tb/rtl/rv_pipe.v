@@ -16,7 +16,9 @@
 //      order, with its RVFI record (registered: valid in the cycle after).
 // An instruction in X that reads the word an instruction in M loads waits one cycle. A store
 // into an instruction already fetched (F, D or X) discards those and fetches them again, so a
-// program sees its own stores as the golden model does.
+// program sees its own stores as the golden model does. The interrupt lines are registered
+// at the input (an interrupt is seen one cycle later); the CSRs, mcycle and minstret are
+// flip-flops (`rv_core` keeps the wide ones in its register file's block RAM).
 //
 // Same ports and SoC timing as `rv_core` (the SoC's memories read on the falling edge);
 // its cycles differ from the cycle-accurate model's, its retirements do not.
