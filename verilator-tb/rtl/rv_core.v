@@ -143,7 +143,8 @@ module rv_core #(
 
     reg        md_busy;            // iterative divider
     reg [5:0]  md_cnt;
-    reg [31:0] md_quo, md_rem, md_div;
+    reg [31:0] md_quo, md_div;
+    reg [31:0] md_rem_n;           // the remainder (or high product), inverted: see md_dif_n
 
     // The reset input enters only the register updates and the fetch address, so the
     // datapath's logic does not depend on a top-level input (which would make a simulator
@@ -199,9 +200,9 @@ module rv_core #(
 
     // ---------------------------------------------------------------- adder
     // Operand A: pc for AUIPC, JAL, branches and the TRAP cycle (mepc <- pc + 0), zero for LUI,
-    // else rs1. Operand B: rs2 (inverted for SUB; for AMOADD in EX2), the instruction's
-    // immediate, zero for atomic addresses and TRAP, the carry for CNT. The immediate is
-    // picked by opcode only (illegal encodings never use the sum).
+    // else rs1. Operand B: rs2 (inverted for SUB), the instruction's immediate, zero for
+    // atomic addresses and TRAP, the carry for CNT. The immediate is picked by opcode only
+    // (illegal encodings never use the sum). An AMO's second cycle: see below.
     wire op_u = !opcode[6] && opcode[4] && opcode[2];        // LUI, AUIPC
     wire op_j = opcode[6] && opcode[3];                      // JAL
     wire op_b = opcode[6] && !opcode[4] && !opcode[2];       // branches
@@ -212,15 +213,9 @@ module rv_core #(
 
     wire        ex_pc   = seq == S_TRAP || (!seq[1] && ((op_u && !opcode[5]) || op_j || op_b));
     wire        do_sub  = !seq[1] && op_r && f7[5];
-    wire [31:0] add_a   = ex_pc ? pc : (!seq[1] && op_u && opcode[5]) ? 32'd0 : rs1v;
     wire [31:0] alu_b   = op_r || op_amo ? rs2v : imm;
-    wire        b_zero  = seq[1] || (op_amo && seq == S_EXEC);   // TRAP, CNT, atomic address
-    wire [31:0] cnt_inc = seq == S_CNT ? (cnt_hi ? 32'd1 : 32'd1 << CNT_P) : 32'd0;
-    wire [31:0] add_b   = ((alu_b & ~{32{b_zero}}) ^ {32{do_sub}}) | cnt_inc;
-    wire [32:0] sum33   = {1'b0, add_a} + {1'b0, add_b} + {32'd0, do_sub};
-    wire [31:0] sum     = sum33[31:0];
 
-    // ---------------------------------------------------------------- comparison, logic
+    // comparison: branches, SLT[U][I], AMOMIN/MAX[U]
     wire [31:0] cmp_b      = is_branch ? rs2v : alu_b;
     wire        cmp_signed = is_branch ? !f3[1] : op_amo ? !f5[3] : !f3[0];
     wire [32:0] cmp_diff   = {cmp_signed & rs1v[31], rs1v} - {cmp_signed & cmp_b[31], cmp_b};
@@ -228,17 +223,35 @@ module rv_core #(
     wire        eq         = rs1v == cmp_b;
     wire        br_taken   = f3[2] ? lt ^ f3[0] : eq ^ f3[0];
 
+    // An AMO's new word (EX2) is the sum OR the logic unit's output, one of them zero: the
+    // logic unit gives AMOXOR/OR/AND (the sum is 0 + 0) and zero for the others, which the
+    // adder makes: AMOADD rs1 + rs2, AMOSWAP 0 + rs2, AMOMIN/MAX[U] rs1 + 0 or 0 + rs2 as the
+    // comparison picks.
+    wire        amo_b    = seq == S_EX2 && op_amo;
+    wire        amo_lg   = !f5[4] && f5[3:2] != 2'b00;             // AMOXOR/OR/AND
+    wire        amo_take = f5[4] && (lt ^ f5[2]);                 // keep the loaded word
+    wire        a_zero  = (!seq[1] && op_u && opcode[5]) ||        // LUI
+                          (amo_b && (f5[0] || amo_lg || (f5[4] && !amo_take)));
+    wire [31:0] add_a   = ex_pc ? pc : a_zero ? 32'd0 : rs1v;
+    // TRAP, CNT, atomic address, AMO operands above
+    wire        b_zero  = seq[1] || (op_amo && seq == S_EXEC) || (amo_b && (amo_take || amo_lg));
+    wire [31:0] cnt_inc = seq == S_CNT ? (cnt_hi ? 32'd1 : 32'd1 << CNT_P) : 32'd0;
+    wire [31:0] add_b   = ((alu_b & ~{32{b_zero}}) ^ {32{do_sub}}) | cnt_inc;
+    wire [32:0] sum33   = {1'b0, add_a} + {1'b0, add_b} + {32'd0, do_sub};
+    wire [31:0] sum     = sum33[31:0];
+
+    // ---------------------------------------------------------------- logic
     wire [4:0]  shamt   = alu_b[4:0];
 
-    // SLT[U], XOR, OR, AND; AMOXOR/AMOOR/AMOAND map onto the same codes
-    wire [2:0]  logic_op = op_amo ? {1'b1, f5[3], f5[3] & f5[2]} : f3;
+    // SLT[U], XOR, OR, AND; AMOXOR/AMOOR/AMOAND map onto the same codes, other AMOs give 0
+    wire [2:0]  logic_op = !op_amo ? f3 : amo_lg ? {1'b1, f5[3], f5[3] & f5[2]} : 3'd0;
     reg  [31:0] logic_out;
     always @(*) begin
         case (logic_op)
             3'd4: logic_out = rs1v ^ alu_b;
             3'd6: logic_out = rs1v | alu_b;
             3'd7: logic_out = rs1v & alu_b;
-            default: logic_out = {31'd0, lt};
+            default: logic_out = {31'd0, lt && !op_amo};
         endcase
     end
 
@@ -259,8 +272,10 @@ module rv_core #(
     wire        sign_b   = is_muldiv && (f3[2] ? !f3[0] : f3[1:0] == 2'd1);
     wire        neg_a    = sign_a && rs1v[31];
     wire        neg_b    = sign_b && rs2v[31];
-    wire [31:0] abs_a    = (rs1v ^ {32{neg_a}}) + {31'd0, neg_a};  // conditional negation
-    wire [31:0] abs_b    = (rs2v ^ {32{neg_b}}) + {31'd0, neg_b};
+    // Conditional negation as (x + s) ^ s, s all ones or zero (~(x - 1) = -x): the XOR after
+    // the adder fits in the LUTs of its carry chain, where one before it would not.
+    wire [31:0] abs_a    = (rs1v + {32{neg_a}}) ^ {32{neg_a}};
+    wire [31:0] abs_b    = (rs2v + {32{neg_b}}) ^ {32{neg_b}};
     wire [4:0]  sh_pow   = f3[2] ? 5'd0 - shamt : shamt;
     wire [31:0] mul_b    = is_shift ? 32'd1 << sh_pow : abs_b;
     wire [63:0] prod_1c  = {32'd0, abs_a} * {32'd0, mul_b};
@@ -270,11 +285,15 @@ module rv_core #(
     wire        lo_zero  = prod_u[31:0] == 32'd0;
     wire        use_lo   = is_shift ? !f3[2] || sh_zero : f3[1:0] == 2'd0;
 
-    wire [32:0] md_sh  = {md_rem, md_quo[31]};
-    wire [32:0] md_dif = md_sh - {1'b0, md_div};
+    // The remainder is kept inverted so that the divider's subtraction needs no inverter in
+    // front of its carry chain (~(~a + b) = a - b): md_dif_n = ~(md_sh - md_div).
+    wire [31:0] md_rem   = ~md_rem_n;
+    wire [32:0] md_sh_n  = {md_rem_n, !md_quo[31]};
+    wire [32:0] md_dif_n = md_sh_n + {1'b0, md_div};
     // one step of the shift-and-add multiplier: {md_rem, md_quo} = (acc + b * bit) >> 1,
     // the multiplier's bits leaving md_quo at the bottom as the product's enter at the top
-    wire [32:0] mq_sum = {1'b0, md_rem} + (md_quo[0] ? {1'b0, md_div} : 33'd0);
+    // (inverted the same way: ~(a + b) = ~a - b)
+    wire [32:0] mq_sum_n = {1'b1, md_rem_n} - (md_quo[0] ? {1'b0, md_div} : 33'd0);
     // barrel shifter (MUL_SEQ only)
     wire [31:0] sh_out = !f3[2] ? rs1v << shamt :
                          f7[5] ? $unsigned($signed(rs1v) >>> shamt) : rs1v >> shamt;
@@ -283,10 +302,12 @@ module rv_core #(
     // Dividing by zero needs no special case: the loop yields an all-ones quotient and the
     // dividend's magnitude as remainder; only the quotient's sign fix-up is suppressed.
     wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
-    // One conditional negation serves the signed high product and the divider's result.
+    // One conditional negation serves the signed high product and the divider's result:
+    // (x - c) ^ s with s = ng, c = ng_c: -x when both are set, ~x with s alone (see abs_a).
     wire [31:0] ng_in  = is_div ? md_res : prod_u[63:32];
     wire        ng     = is_div ? md_neg : prod_neg;
-    wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, is_div ? md_neg : prod_neg & lo_zero};
+    wire        ng_c   = is_div ? md_neg : prod_neg && lo_zero;   // (implies ng)
+    wire [31:0] ng_out = (ng_in + {32{ng_c}}) ^ {32{ng}};
     wire [31:0] mul_out = MUL_SEQ != 0 && is_shift ? sh_out :
                           use_lo && !is_div ? prod_u[31:0] : ng_out;   // also DIV/REM
 
@@ -313,10 +334,9 @@ module rv_core #(
     wire [31:0] st_data = f3[1:0] == 2'd0 ? {4{rs2v[7:0]}} :
                           f3[1:0] == 2'd1 ? {2{rs2v[15:0]}} : rs2v;
 
-    // AMO, second cycle: rs1v is the loaded word; the adder, the logic unit and the
-    // comparison give the new one.
-    wire [31:0] amo_out = f5[4] ? ((lt ^ f5[2]) ? rs1v : rs2v) :
-                          f5[3:2] != 2'b00 ? logic_out : f5[0] ? rs2v : sum;
+    // AMO, second cycle: rs1v is the loaded word; the logic unit (AMOXOR/OR/AND) or the
+    // adder (the others, see above) gives the new one.
+    wire [31:0] amo_out = logic_out | sum;
     wire sc_ok = res_valid && res_addr == ls_addr;
 
     // ---------------------------------------------------------------- CSRs
@@ -448,13 +468,22 @@ module rv_core #(
                        two_ph ? S_EX2 : S_EXEC;
 
     wire hold = seq == S_CNT || trap_in || two_ph || (ex && stall);
-    wire [31:0] fetch_pc = rst ? RESET_PC : seq == S_TRAP ? trap_pc : hold ? pc : next_pc;
+    // MRET (rs2v = mepc) and TRAP (rs2v = mtvec) share one path from rs2v to the fetch address:
+    // `seq_pc` is trap_pc in TRAP and next_pc otherwise.
+    wire        in_trap  = seq == S_TRAP;
+    wire [31:0] rs2_pc   = {rs2v[31:6],
+                            rs2v[5:2] | (in_trap && mcause_int && rs2v[0] ? mcause_code : 4'd0),
+                            rs2v[1:0] & ~{2{in_trap}}};
+    wire [31:0] seq_pc   = in_trap || (!jump && is_mret) ? rs2_pc :
+                           jump ? {sum[31:1], 1'b0} : pc_plus4;
+    // (pc takes the fetch address itself, so one reset gate serves both)
+    wire [31:0] fetch_pc = hold && !in_trap && !rst ? pc : imem_addr;
     // The memory is read with the address of the next instruction whether or not this cycle
     // holds: `hold` depends on interrupt lines, traps and stalls, which settle late, while
     // the memory needs its address early (it reads on the falling edge). A holding cycle
     // instead keeps the instruction word it has, updated with a store that landed since it
     // was read, which is what reading it again at `pc` gives (see `refetch` below).
-    assign imem_addr  = rst ? RESET_PC : seq == S_TRAP ? trap_pc : next_pc;
+    assign imem_addr  = rst ? RESET_PC : seq_pc;
     // an AMO stores in EX2 to the address it loaded from
     assign dmem_addr  = seq == S_EX2 ? {res_addr[31:2], 2'b00} : {ls_addr[31:2], 2'b00};
     assign dmem_re    = (commit_ex && mem_rd) || amo_a;
@@ -574,7 +603,8 @@ module rv_core #(
         ({32{f_eb}}  & 32'h0010_0073) |
         ({32{f_ssp}} & {7'd0, c[6:2], 5'd2, 3'b010, 5'd0, 7'b0100011}) |
         ({32{!c_legal}} & {16'd0, c});
-    // Immediates. 32-bit formats by opcode bits only (illegal encodings never use the sum);
+    // Immediates. 32-bit formats by opcode bits only (illegal encodings never use the sum;
+    // atomics, decoded as S, never use the immediate: their operand B is rs2 or zero);
     // compressed ones by format (the register-register forms and C.JR/C.JALR take zero).
     wire [6:0]  fo = fr[6:0];
     wire [31:0] imm32 =
@@ -582,8 +612,7 @@ module rv_core #(
         (fo[6] && fo[3]) ? {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0} : // J
         (fo[6] && !fo[4] && !fo[2]) ?
             {{19{fr[31]}}, fr[31], fr[7], fr[30:25], fr[11:8], 1'b0} :                 // B
-        (!fo[6] && fo[5] && !fo[4]) ?
-            (fo[2] ? 32'd0 : {{20{fr[31]}}, fr[31:25], fr[11:7]}) :                    // S, A
+        (!fo[6] && fo[5] && !fo[4]) ? {{20{fr[31]}}, fr[31:25], fr[11:7]} :           // S, A
         {{20{fr[31]}}, fr[31:20]};                                                     // I
     wire [31:0] immc =
         ({32{f_a4}}  & {22'd0, c[10:7], c[12:11], c[5], c[6], 2'b00}) |
@@ -684,16 +713,16 @@ module rv_core #(
                         md_busy <= 1'b1;
                         md_cnt <= 6'd0;
                         md_quo <= abs_a;
-                        md_rem <= 32'd0;
+                        md_rem_n <= 32'hffff_ffff;
                         md_div <= abs_b;
                     end else if (MUL_SEQ == 0 || is_div) begin
                         md_cnt <= md_cnt + 6'd1;
-                        md_quo <= {md_quo[30:0], !md_dif[32]};
-                        md_rem <= md_dif[32] ? md_sh[31:0] : md_dif[31:0];
+                        md_quo <= {md_quo[30:0], md_dif_n[32]};   // no borrow
+                        md_rem_n <= md_dif_n[32] ? md_dif_n[31:0] : md_sh_n[31:0];
                     end else begin
                         md_cnt <= md_cnt + 6'd1;
-                        md_quo <= {mq_sum[0], md_quo[31:1]};
-                        md_rem <= mq_sum[32:1];
+                        md_quo <= {!mq_sum_n[0], md_quo[31:1]};
+                        md_rem_n <= mq_sum_n[32:1];
                     end
                 end
             end else if (amo_a) begin
