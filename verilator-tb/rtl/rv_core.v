@@ -107,6 +107,10 @@ module rv_core #(
 
     // ---------------------------------------------------------------- state
     reg [31:0] pc;
+    // A read of the word written at the same edge is never used (byp_a/byp_b forward the
+    // written value instead), so synthesis need not give it a defined value: without
+    // no_rw_check, yosys would emulate the read-before-write order in logic.
+    (* no_rw_check *)
     reg [31:0] regs [0:63];
     integer k;
     initial for (k = 0; k < 64; k = k + 1) regs[k] = 32'd0;  // block-RAM initial contents
