@@ -894,7 +894,7 @@ impl<const N: usize> Endpoint<N> {
             Some(n) => {
                 // A peer silent for longer than a full retry run may have restarted: forget
                 // its receive state so its new sequence numbers are not taken for repeats.
-                if now.saturating_sub(n.last_heard) > DEDUP_RESET_US {
+                if crate::sat_sub(now, n.last_heard) > DEDUP_RESET_US {
                     n.window = None;
                     n.pending = None;
                     n.reply = None;

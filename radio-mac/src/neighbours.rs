@@ -130,7 +130,7 @@ impl Neighbour {
 
     /// Whether it has been silent for more than `stale_after_us`.
     pub fn is_stale(&self, now: u64, stale_after_us: u64) -> bool {
-        now.saturating_sub(self.last_heard) > stale_after_us
+        crate::sat_sub(now, self.last_heard) > stale_after_us
     }
 }
 

@@ -256,7 +256,7 @@ impl Schedule {
         if self.reference.map(|(r, _)| r) == Some(src) {
             let back =
                 u64::from(self.latency_us()) + u64::from(default_slot(src)) * u64::from(SLOT_US);
-            self.ref_frame = Some((seq, now.saturating_sub(back)));
+            self.ref_frame = Some((seq, crate::sat_sub(now, back)));
         }
     }
 
@@ -285,7 +285,7 @@ impl Schedule {
             _ => self.next_slot_start(now),
         };
         // When that frame should have arrived (for this car's next slot's frame period).
-        let expected = (mine + u64::from(latency_us)).saturating_sub(u64::from(back * SLOT_US));
+        let expected = crate::sat_sub(mine + u64::from(latency_us), u64::from(back * SLOT_US));
         if now > expected + LATE_YIELD_US && mine > now + self.send_lead_us() {
             self.yield_slot = Some(mine);
         }
@@ -347,13 +347,13 @@ impl Schedule {
             return;
         };
         let back = u64::from(latency_us) + u64::from(default_slot(src)) * u64::from(SLOT_US);
-        let estimate = now.saturating_sub(back);
+        let estimate = crate::sat_sub(now, back);
         if self.own.is_some_and(|own| src >= own) {
             self.root_vote(now, estimate, stale_after_us);
             return;
         }
         let current_ok = match self.reference {
-            Some((r, heard)) => now.saturating_sub(heard) <= stale_after_us && r < src,
+            Some((r, heard)) => crate::sat_sub(now, heard) <= stale_after_us && r < src,
             None => false,
         };
         if current_ok {
@@ -373,7 +373,7 @@ impl Schedule {
     fn root_vote(&mut self, now: u64, estimate: u64, stale_after_us: u64) {
         let following = self
             .reference
-            .is_some_and(|(_, heard)| now.saturating_sub(heard) <= stale_after_us);
+            .is_some_and(|(_, heard)| crate::sat_sub(now, heard) <= stale_after_us);
         if following {
             return;
         }
@@ -398,7 +398,7 @@ impl Schedule {
     /// Forget a reference that has not been heard for `stale_after_us` (keep free-running).
     pub fn expire(&mut self, now: u64, stale_after_us: u64) {
         if let Some((_, heard)) = self.reference {
-            if now.saturating_sub(heard) > stale_after_us {
+            if crate::sat_sub(now, heard) > stale_after_us {
                 self.reference = None;
             }
         }

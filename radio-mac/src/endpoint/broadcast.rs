@@ -10,7 +10,7 @@ impl<const N: usize> Endpoint<N> {
     pub(super) fn ground_frames_on(&self, now: u64) -> bool {
         let around = self
             .ground_heard
-            .is_some_and(|t| now.saturating_sub(t) <= GROUND_AROUND_US);
+            .is_some_and(|t| crate::sat_sub(now, t) <= GROUND_AROUND_US);
         (around || self.own == Address::Ground) && self.every_slot_taken(now)
     }
 
@@ -54,8 +54,10 @@ impl<const N: usize> Endpoint<N> {
         let slot = s.own_slot();
         if ground_frames && slot < crate::schedule::GROUND_SLOTS {
             // The frame's number: the reference's count, or this car's own as slot 0's car.
-            let start = (due + s.send_lead_us())
-                .saturating_sub(u64::from(slot) * u64::from(crate::schedule::SLOT_US));
+            let start = crate::sat_sub(
+                due + s.send_lead_us(),
+                u64::from(slot) * u64::from(crate::schedule::SLOT_US),
+            );
             let number = match s.reference() {
                 Some(_) => s.frame_number(start),
                 None => Some(self.state_seq),
@@ -118,7 +120,7 @@ impl<const N: usize> Endpoint<N> {
         }
         // A car broadcasting its state needs no heartbeat.
         if let Some(t) = self.last_state_sent {
-            if now.saturating_sub(t) < self.heartbeat_us {
+            if crate::sat_sub(now, t) < self.heartbeat_us {
                 self.next_heartbeat = Some(now + self.heartbeat_us);
                 return;
             }
@@ -153,7 +155,7 @@ impl<const N: usize> Endpoint<N> {
             }
             f
         } else {
-            let uptime = now.saturating_sub(self.started.unwrap_or(now)) / 1_000_000;
+            let uptime = crate::sat_sub(now, self.started.unwrap_or(now)) / 1_000_000;
             Frame::Heartbeat {
                 src: self.own,
                 beat: Heartbeat {

@@ -116,7 +116,7 @@ impl<const N: usize> Endpoint<N> {
         let (Some(key), Address::Car(src)) = (self.key.as_ref(), self.own) else {
             return;
         };
-        if self.hello_at.is_some_and(|t| now.saturating_sub(t) < gap) {
+        if self.hello_at.is_some_and(|t| crate::sat_sub(now, t) < gap) {
             return;
         }
         let nonce = self.next_nonce;
@@ -161,7 +161,7 @@ impl<const N: usize> Endpoint<N> {
             return;
         };
         if n.session_sent
-            .is_some_and(|t| now.saturating_sub(t) < SESSION_OPEN_GAP_US)
+            .is_some_and(|t| crate::sat_sub(now, t) < SESSION_OPEN_GAP_US)
         {
             return;
         }
