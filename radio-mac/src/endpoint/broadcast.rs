@@ -96,7 +96,8 @@ impl<const N: usize> Endpoint<N> {
     /// the first slot no fresh car uses. `None`: phase unknown or no free slot.
     pub(super) fn heartbeat_slot_start(&self, now: u64) -> Option<u64> {
         let s = self.schedule.as_ref()?;
-        if matches!(self.own, Address::Car(_)) {
+        // `N` tells the roles apart at compile time: a car's firmware carries no station code.
+        if N != crate::GROUND_CARS || matches!(self.own, Address::Car(_)) {
             return s.slot_start(s.own_slot(), now);
         }
         let mut used = 0u32;
