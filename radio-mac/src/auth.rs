@@ -6,7 +6,7 @@
 //! 0x38..=0x3F (eight 16-bit words, register 0x38 holds key bytes 0 and 1, low byte first)
 //! and never sent on air.
 
-use crate::wire::{EncodeError, Frame, AUTH_TAG_LEN, CRC_LEN, MAX_RAW};
+use crate::wire::{EncodeError, Frame, Writer, AUTH_TAG_LEN, CRC_LEN};
 
 /// First EEPROM user register holding the key.
 pub const KEY_EEPROM_FIRST: u8 = 0x38;
@@ -133,8 +133,9 @@ pub fn frame_tag(
         Frame::GroundBeat { .. } | Frame::Hello { .. } | Frame::SessionOpen { .. } => false,
         _ => return Ok(None),
     };
-    let mut raw = [0u8; MAX_RAW + 4];
-    let n = frame.emit_raw(&mut raw)?;
+    let mut w = Writer::new();
+    frame.emit_into(&mut w)?;
+    let (raw, n) = (&mut w.buf, w.pos);
     let mut end = n.saturating_sub(AUTH_TAG_LEN + CRC_LEN);
     if bound {
         raw.get_mut(end..end + 4)

@@ -449,12 +449,23 @@ impl<'a> Reader<'a> {
     }
 }
 
-struct Writer<'a> {
-    buf: &'a mut [u8],
-    pos: usize,
+/// A raw frame being written. Every frame fits in its [`MAX_RAW`] bytes, so the writes at
+/// fixed offsets need no bounds check of their own.
+pub(crate) struct Writer {
+    pub(crate) buf: [u8; MAX_RAW],
+    pub(crate) pos: usize,
 }
 
-impl Writer<'_> {
+impl Writer {
+    pub(crate) fn new() -> Self {
+        Writer {
+            buf: [0; MAX_RAW],
+            pos: 0,
+        }
+    }
+    fn written(&self) -> &[u8] {
+        self.buf.get(..self.pos).unwrap_or(&[])
+    }
     fn bytes(&mut self, data: &[u8]) -> Result<(), EncodeError> {
         let end = self.pos + data.len();
         self.buf
@@ -781,7 +792,20 @@ impl Frame {
 
     /// Write the raw frame (with CRC) into `buf`; returns its length.
     pub fn emit_raw(&self, buf: &mut [u8]) -> Result<usize, EncodeError> {
-        let mut w = Writer { buf, pos: 0 };
+        let mut w = Writer::new();
+        let done = self.emit_into(&mut w);
+        // A field is checked before it is written: its error counts only if everything
+        // written before it fits in `buf`.
+        let out = buf.get_mut(..w.pos).ok_or(EncodeError::BufferTooSmall)?;
+        done?;
+        out.copy_from_slice(w.written());
+        Ok(w.pos)
+    }
+
+    /// Write the raw frame (with CRC) into `w` from its start; on an error `w.pos` is where
+    /// the field in error would have gone.
+    pub(crate) fn emit_into(&self, w: &mut Writer) -> Result<(), EncodeError> {
+        w.pos = 0;
         let src = self.src();
         if src == Address::Broadcast {
             return Err(EncodeError::InvalidSource);
@@ -891,17 +915,14 @@ impl Frame {
                 w.bytes(mac)?;
             }
         }
-        let crc = CRC16.checksum(w.buf.get(..w.pos).ok_or(EncodeError::BufferTooSmall)?);
-        w.u16(crc)?;
-        Ok(w.pos)
+        w.u16(CRC16.checksum(w.written()))
     }
 
     /// Write the frame as it goes on air (COBS + `0x00` delimiter); returns its length.
     pub fn encode(&self, buf: &mut [u8]) -> Result<usize, EncodeError> {
-        let mut raw = [0u8; MAX_RAW];
-        let n = self.emit_raw(&mut raw)?;
-        let raw = raw.get(..n).ok_or(EncodeError::BufferTooSmall)?;
-        let enc = cobs::try_encode(raw, buf).map_err(|_| EncodeError::BufferTooSmall)?;
+        let mut w = Writer::new();
+        self.emit_into(&mut w)?;
+        let enc = cobs::try_encode(w.written(), buf).map_err(|_| EncodeError::BufferTooSmall)?;
         *buf.get_mut(enc).ok_or(EncodeError::BufferTooSmall)? = 0;
         Ok(enc + 1)
     }
@@ -1163,5 +1184,38 @@ mod tests {
             state: CarState::default(),
         };
         assert_eq!(ok.encode(&mut [0u8; 10]), Err(EncodeError::BufferTooSmall));
+        // Into a small buffer, a field error counts once every field before it was written:
+        // the heading goes at offset 7, after header, source, sequence number, X and Y.
+        let heading = Err(EncodeError::FieldOutOfRange {
+            field: Field::Heading,
+        });
+        for len in 0..7 {
+            assert_eq!(
+                f.emit_raw(&mut [0u8; 16][..len]),
+                Err(EncodeError::BufferTooSmall),
+                "{len}"
+            );
+        }
+        for len in 7..16 {
+            assert_eq!(f.emit_raw(&mut [0u8; 16][..len]), heading, "{len}");
+        }
+        // A heartbeat from the ground station is refused after the header is written.
+        let plain = Frame::Heartbeat {
+            src: Address::Ground,
+            beat: Heartbeat::default(),
+        };
+        assert_eq!(
+            plain.emit_raw(&mut [0u8; 1]),
+            Err(EncodeError::BufferTooSmall)
+        );
+        assert_eq!(
+            plain.emit_raw(&mut [0u8; 2]),
+            Err(EncodeError::InvalidSource)
+        );
+        assert_eq!(
+            ok.emit_raw(&mut [0u8; 13]),
+            Err(EncodeError::BufferTooSmall)
+        );
+        assert_eq!(ok.emit_raw(&mut [0u8; 14]), Ok(14));
     }
 }
