@@ -61,15 +61,22 @@ fn classify(header: u8, data: &[u8]) -> Result<HeaderClass, DecodeError> {
     }
 }
 
-// Out of line: inlined into each message's decoder it cost the firmware 296 bytes more
-// (`docs/benchmarks.md` section 1), for a call once per message.
-#[cfg_attr(target_arch = "riscv32", inline(never))]
 fn fields<const N: usize>(
     header: u8,
     data: &[u8],
     widths: &[u8; N],
 ) -> Result<[u32; N], DecodeError> {
-    crate::pack::unpack(data, widths).map_err(|e| match e {
+    let mut out = [0u32; N];
+    fields_into(header, data, widths, &mut out)?;
+    Ok(out)
+}
+
+// Out of line: inlined into each message's decoder it cost the firmware 296 bytes more
+// (`docs/benchmarks.md` section 1), for a call once per message; one copy for every number
+// of fields.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
+fn fields_into(header: u8, data: &[u8], widths: &[u8], out: &mut [u32]) -> Result<(), DecodeError> {
+    crate::pack::unpack_into(data, widths, out).map_err(|e| match e {
         UnpackError::LengthMismatch { expected, got } => DecodeError::Length {
             header,
             expected,

@@ -227,13 +227,19 @@ pub fn pack(fields: &[(u32, u8)], out: &mut [u8]) -> Result<usize, PackError> {
 
 /// Unpacks fields of the given widths; `data` must hold exactly their sum.
 pub fn unpack<const N: usize>(data: &[u8], widths: &[u8; N]) -> Result<[u32; N], UnpackError> {
+    let mut out = [0u32; N];
+    unpack_into(data, widths, &mut out)?;
+    Ok(out)
+}
+
+/// [`unpack`] into `out` (one value per width), for any number of fields.
+pub fn unpack_into(data: &[u8], widths: &[u8], out: &mut [u32]) -> Result<(), UnpackError> {
     let total: usize = widths.iter().map(|&w| usize::from(w)).sum();
     let mut r = BitReader::new(data, total)?;
-    let mut out = [0u32; N];
     for (slot, &width) in out.iter_mut().zip(widths) {
         *slot = r.read(width)?;
     }
-    Ok(out)
+    Ok(())
 }
 
 #[cfg(test)]
