@@ -175,6 +175,8 @@ pub enum Command {
 
 impl Command {
     /// The command's kind (and header).
+    // Never inlined: otherwise each crate calling it gets its own copy of it and its table.
+    #[inline(never)]
     #[must_use]
     pub const fn kind(&self) -> CommandKind {
         use CommandKind as K;
