@@ -367,7 +367,8 @@ impl Command {
 
     /// Writes the complete message; returns its length.
     pub fn emit(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        emit_frame(self.header(), out, |w| self.write(w))
+        // The same bytes as the LBC's echo of it: one copy of the frame writer serves both.
+        Reply::Echo(*self).emit(out)
     }
 }
 
