@@ -720,24 +720,26 @@ impl Frame {
                     mac,
                 }
             }
-            Kind::GroundBeat => {
-                if src != Address::Ground {
-                    return Err(FrameError::InvalidSource);
-                }
-                Frame::GroundBeat {
-                    epoch: r.u32().ok_or(bad)?,
-                    beat: r.u32().ok_or(bad)?,
-                    mac: r.mac().ok_or(bad)?,
-                }
-            }
-            Kind::Hello => {
-                let Address::Car(src) = src else {
-                    return Err(FrameError::InvalidSource);
+            Kind::GroundBeat | Kind::Hello => {
+                // The same layout: eight bytes (epoch and beat, or the nonce), then the tag.
+                let hello = match src {
+                    Address::Car(id) if kind == Kind::Hello => Some(id),
+                    Address::Ground if kind == Kind::GroundBeat => None,
+                    _ => return Err(FrameError::InvalidSource),
                 };
-                Frame::Hello {
-                    src,
-                    nonce: r.u64().ok_or(bad)?,
-                    mac: r.mac().ok_or(bad)?,
+                let word = r.u64().ok_or(bad)?;
+                let mac = r.mac().ok_or(bad)?;
+                match hello {
+                    Some(src) => Frame::Hello {
+                        src,
+                        nonce: word,
+                        mac,
+                    },
+                    None => Frame::GroundBeat {
+                        epoch: word as u32,
+                        beat: (word >> 32) as u32,
+                        mac,
+                    },
                 }
             }
             Kind::SessionOpen => {
@@ -1133,6 +1135,44 @@ mod tests {
             Frame::parse(&with_crc(&hello)),
             Err(FrameError::InvalidSource)
         );
+        hello[1] = 0x7F;
+        assert_eq!(
+            Frame::parse(&with_crc(&hello)),
+            Err(FrameError::InvalidSource)
+        );
+        hello[1] = 0x03;
+        assert!(Frame::parse(&with_crc(&hello)).is_ok());
+        assert_eq!(
+            Frame::parse(&with_crc(&hello[..17])),
+            Err(FrameError::BadLength {
+                kind: Kind::Hello,
+                len: 19
+            })
+        );
+        // The ground station's heartbeat from a car or broadcast, or cut short.
+        let mut beat = [0u8; 18];
+        beat[0] = 0x47;
+        beat[1] = 0x03;
+        assert_eq!(
+            Frame::parse(&with_crc(&beat)),
+            Err(FrameError::InvalidSource)
+        );
+        beat[1] = 0x7F;
+        assert_eq!(
+            Frame::parse(&with_crc(&beat)),
+            Err(FrameError::InvalidSource)
+        );
+        beat[1] = 0x00;
+        assert!(Frame::parse(&with_crc(&beat)).is_ok());
+        for n in 2..18 {
+            assert_eq!(
+                Frame::parse(&with_crc(&beat[..n])),
+                Err(FrameError::BadLength {
+                    kind: Kind::GroundBeat,
+                    len: n + 2
+                })
+            );
+        }
         let mut open = [0u8; 31];
         open[0] = 0x49;
         open[1] = 0x02;
