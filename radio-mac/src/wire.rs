@@ -501,14 +501,6 @@ fn check_heading(v: u16) -> Result<u16, EncodeError> {
     }
 }
 
-fn unicast(dst: Address) -> Result<Address, FrameError> {
-    if dst == Address::Broadcast {
-        Err(FrameError::InvalidDestination)
-    } else {
-        Ok(dst)
-    }
-}
-
 fn sender(src: Address) -> Result<Address, FrameError> {
     if src == Address::Broadcast {
         Err(FrameError::InvalidSource)
@@ -620,28 +612,67 @@ impl Frame {
                     },
                 }
             }
-            Kind::Request | Kind::Reply => {
-                let dst = unicast(Address::from_byte(r.u8().ok_or(bad)?)?)?;
-                let seq = r.u16().ok_or(bad)?;
+            Kind::Request | Kind::Reply | Kind::AuthCommand => {
+                // One layout: destination, sequence number (a command's 32-bit counter), tag,
+                // payload, and a command's MAC.
+                let auth = kind == Kind::AuthCommand;
+                if auth && src != Address::Ground {
+                    return Err(FrameError::InvalidSource);
+                }
+                let dst = Address::from_byte(r.u8().ok_or(bad)?)?;
+                // Requests and replies are unicast; commands go to cars.
+                let never = if auth {
+                    Address::Ground
+                } else {
+                    Address::Broadcast
+                };
+                if dst == never {
+                    return Err(FrameError::InvalidDestination);
+                }
+                let seq = if auth {
+                    r.u32()
+                } else {
+                    r.u16().map(u32::from)
+                }
+                .ok_or(bad)?;
                 let tag = r.u8().ok_or(bad)?;
-                let payload = Payload::from_slice(r.rest()).map_err(|_| bad)?;
+                let rest = r.rest();
+                let mac_len = if auth { AUTH_TAG_LEN } else { 0 };
+                if rest.len() < mac_len {
+                    return Err(bad);
+                }
+                let (body, mac_bytes) = rest.split_at(rest.len() - mac_len);
+                let payload = Payload::from_slice(body).map_err(|_| bad)?;
                 r.pos = data.len();
-                let src = sender(src)?;
-                if kind == Kind::Request {
-                    Frame::Request {
-                        src,
+                if auth {
+                    let mut mac = [0u8; AUTH_TAG_LEN];
+                    mac.copy_from_slice(mac_bytes);
+                    Frame::AuthCommand {
                         dst,
-                        seq,
+                        counter: seq,
                         tag,
                         payload,
+                        mac,
                     }
                 } else {
-                    Frame::Reply {
-                        src,
-                        dst,
-                        seq,
-                        tag,
-                        payload,
+                    let src = sender(src)?;
+                    let seq = seq as u16;
+                    if kind == Kind::Request {
+                        Frame::Request {
+                            src,
+                            dst,
+                            seq,
+                            tag,
+                            payload,
+                        }
+                    } else {
+                        Frame::Reply {
+                            src,
+                            dst,
+                            seq,
+                            tag,
+                            payload,
+                        }
                     }
                 }
             }
@@ -691,33 +722,6 @@ impl Frame {
                     group,
                     gseq,
                     msg,
-                }
-            }
-            Kind::AuthCommand => {
-                if src != Address::Ground {
-                    return Err(FrameError::InvalidSource);
-                }
-                let dst = Address::from_byte(r.u8().ok_or(bad)?)?;
-                if dst == Address::Ground {
-                    return Err(FrameError::InvalidDestination);
-                }
-                let counter = r.u32().ok_or(bad)?;
-                let tag = r.u8().ok_or(bad)?;
-                let rest = r.rest();
-                if rest.len() < AUTH_TAG_LEN {
-                    return Err(bad);
-                }
-                let (body, mac_bytes) = rest.split_at(rest.len() - AUTH_TAG_LEN);
-                let payload = Payload::from_slice(body).map_err(|_| bad)?;
-                let mut mac = [0u8; AUTH_TAG_LEN];
-                mac.copy_from_slice(mac_bytes);
-                r.pos = data.len();
-                Frame::AuthCommand {
-                    dst,
-                    counter,
-                    tag,
-                    payload,
-                    mac,
                 }
             }
             Kind::GroundBeat | Kind::Hello => {
@@ -1062,8 +1066,9 @@ mod tests {
         assert_eq!(Frame::parse(&raw[..n]), Ok(f));
     }
 
-    fn with_crc(body: &[u8]) -> Vec<u8, MAX_RAW> {
-        let mut v = Vec::<u8, MAX_RAW>::from_slice(body).unwrap();
+    /// `body` and its CRC, up to a frame longer than any valid one.
+    fn with_crc(body: &[u8]) -> Vec<u8, 64> {
+        let mut v = Vec::<u8, 64>::from_slice(body).unwrap();
         v.extend_from_slice(&CRC16.checksum(body).to_le_bytes())
             .unwrap();
         v
@@ -1123,6 +1128,98 @@ mod tests {
             ])),
             Err(FrameError::InvalidSource)
         );
+        // Authenticated command to the ground station, cut into its tag, or with a payload
+        // too long; requests from broadcast, to no address, or too long.
+        let mut cmd = [0u8; 16];
+        cmd[0] = 0x46;
+        cmd[2] = 0x01;
+        assert!(Frame::parse(&with_crc(&cmd)).is_ok());
+        assert_eq!(
+            Frame::parse(&with_crc(&cmd[..15])),
+            Err(FrameError::BadLength {
+                kind: Kind::AuthCommand,
+                len: 17
+            })
+        );
+        cmd[2] = 0x7F;
+        assert!(Frame::parse(&with_crc(&cmd)).is_ok());
+        cmd[2] = 0x80;
+        assert_eq!(
+            Frame::parse(&with_crc(&cmd)),
+            Err(FrameError::InvalidAddress { value: 0x80 })
+        );
+        cmd[2] = 0x00;
+        assert_eq!(
+            Frame::parse(&with_crc(&cmd)),
+            Err(FrameError::InvalidDestination)
+        );
+        assert_eq!(
+            Frame::parse(&with_crc(&cmd[..4])),
+            Err(FrameError::InvalidDestination)
+        );
+        cmd[2] = 0x01;
+        for n in 2..8 {
+            assert_eq!(
+                Frame::parse(&with_crc(&cmd[..n])),
+                Err(FrameError::BadLength {
+                    kind: Kind::AuthCommand,
+                    len: n + 2
+                })
+            );
+        }
+        let mut long = [0u8; 49];
+        long[0] = 0x46;
+        long[2] = 0x01;
+        assert!(Frame::parse(&with_crc(&long[..48])).is_ok());
+        assert_eq!(
+            Frame::parse(&with_crc(&long)),
+            Err(FrameError::BadLength {
+                kind: Kind::AuthCommand,
+                len: 51
+            })
+        );
+        let mut req = [0u8; 39];
+        req[0] = 0x43;
+        req[1] = 0x01;
+        req[2] = 0x02;
+        assert!(Frame::parse(&with_crc(&req[..38])).is_ok());
+        assert_eq!(
+            Frame::parse(&with_crc(&req)),
+            Err(FrameError::BadLength {
+                kind: Kind::Request,
+                len: 41
+            })
+        );
+        for n in 3..6 {
+            assert_eq!(
+                Frame::parse(&with_crc(&req[..n])),
+                Err(FrameError::BadLength {
+                    kind: Kind::Request,
+                    len: n + 2
+                })
+            );
+        }
+        req[1] = 0x7F;
+        assert_eq!(
+            Frame::parse(&with_crc(&req[..6])),
+            Err(FrameError::InvalidSource)
+        );
+        assert_eq!(
+            Frame::parse(&with_crc(&req[..5])),
+            Err(FrameError::BadLength {
+                kind: Kind::Request,
+                len: 7
+            })
+        );
+        req[0] = 0x44;
+        req[2] = 0x90;
+        assert_eq!(
+            Frame::parse(&with_crc(&req[..6])),
+            Err(FrameError::InvalidAddress { value: 0x90 })
+        );
+        req[2] = 0x00;
+        req[1] = 0x00;
+        assert!(Frame::parse(&with_crc(&req[..6])).is_ok());
         assert_eq!(
             Frame::parse(&with_crc(&[0x45, 0x01, 0x7F, 0, 0, 9])),
             Err(FrameError::UnknownGroupMsg { value: 9 })
