@@ -818,7 +818,8 @@ impl Frame {
         }
         w.u8((VERSION << 5) | self.kind() as u8)?;
         w.u8(src.to_byte())?;
-        match self {
+        // The tag of the authenticated kinds goes last.
+        let mac = match self {
             Frame::State { seq, state, .. } => {
                 w.u8(*seq)?;
                 w.u16(check_coord(state.x, Field::X)?)?;
@@ -826,6 +827,7 @@ impl Frame {
                 w.u16(check_heading(state.heading_mrad)?)?;
                 w.u16(state.velocity_mm_s as u16)?;
                 w.u8(state.mode.to_byte()?)?;
+                None
             }
             Frame::Heartbeat { beat, .. } => {
                 if src == Address::Ground {
@@ -834,6 +836,7 @@ impl Frame {
                 w.u8(beat.mode.to_byte()?)?;
                 w.u8(beat.neighbours)?;
                 w.u16(beat.uptime_s)?;
+                None
             }
             Frame::Request {
                 dst,
@@ -856,6 +859,7 @@ impl Frame {
                 w.u16(*seq)?;
                 w.u8(*tag)?;
                 w.bytes(payload)?;
+                None
             }
             Frame::Group {
                 dst,
@@ -879,6 +883,7 @@ impl Frame {
                     GroupMsg::Start { delay_ms } => w.u16(delay_ms)?,
                     GroupMsg::Stop => {}
                 }
+                None
             }
             Frame::AuthCommand {
                 dst,
@@ -894,16 +899,16 @@ impl Frame {
                 w.bytes(&counter.to_le_bytes())?;
                 w.u8(*tag)?;
                 w.bytes(payload)?;
-                w.bytes(mac)?;
+                Some(mac)
             }
             Frame::GroundBeat { epoch, beat, mac } => {
                 w.bytes(&epoch.to_le_bytes())?;
                 w.bytes(&beat.to_le_bytes())?;
-                w.bytes(mac)?;
+                Some(mac)
             }
             Frame::Hello { nonce, mac, .. } => {
                 w.bytes(&nonce.to_le_bytes())?;
-                w.bytes(mac)?;
+                Some(mac)
             }
             Frame::SessionOpen {
                 dst,
@@ -918,8 +923,11 @@ impl Frame {
                 w.bytes(&epoch.to_le_bytes())?;
                 w.bytes(&command_min.to_le_bytes())?;
                 w.bytes(&beat_min.to_le_bytes())?;
-                w.bytes(mac)?;
+                Some(mac)
             }
+        };
+        if let Some(mac) = mac {
+            w.bytes(mac)?;
         }
         w.u16(CRC16.checksum(w.written()))
     }
