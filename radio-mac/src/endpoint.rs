@@ -626,6 +626,8 @@ impl<const N: usize> Endpoint<N> {
         RequestHandle(self.next_handle)
     }
 
+    // Out of line: a smaller image than its 64-bit shift and remainder at each use.
+    #[inline(never)]
     fn timeout(&mut self, attempts: u8) -> u64 {
         let shift = u32::from(attempts.saturating_sub(1)).min(16);
         let t = (u64::from(self.retry.base_us) << shift).min(u64::from(self.retry.max_us));
