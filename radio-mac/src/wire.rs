@@ -501,6 +501,20 @@ fn check_heading(v: u16) -> Result<u16, EncodeError> {
     }
 }
 
+/// A received pose's ranges, X first, then Y and heading.
+fn check_pose(x: u16, y: u16, heading_mrad: u16) -> Result<(), FrameError> {
+    let field = if x > MAX_COORD {
+        Field::X
+    } else if y > MAX_COORD {
+        Field::Y
+    } else if heading_mrad > MAX_HEADING_MRAD {
+        Field::Heading
+    } else {
+        return Ok(());
+    };
+    Err(FrameError::FieldOutOfRange { field })
+}
+
 fn sender(src: Address) -> Result<Address, FrameError> {
     if src == Address::Broadcast {
         Err(FrameError::InvalidSource)
@@ -578,17 +592,14 @@ impl Frame {
                 let heading_mrad = r.u16().ok_or(bad)?;
                 let velocity_mm_s = r.u16().ok_or(bad)? as i16;
                 let mode = Mode::from_byte(r.u8().ok_or(bad)?)?;
-                let range = |e: EncodeError| match e {
-                    EncodeError::FieldOutOfRange { field } => FrameError::FieldOutOfRange { field },
-                    _ => bad,
-                };
+                check_pose(x, y, heading_mrad)?;
                 Frame::State {
                     src,
                     seq,
                     state: CarState {
-                        x: check_coord(x, Field::X).map_err(range)?,
-                        y: check_coord(y, Field::Y).map_err(range)?,
-                        heading_mrad: check_heading(heading_mrad).map_err(range)?,
+                        x,
+                        y,
+                        heading_mrad,
                         velocity_mm_s,
                         mode,
                     },
@@ -693,17 +704,7 @@ impl Frame {
                         let x = r.u16().ok_or(bad)?;
                         let y = r.u16().ok_or(bad)?;
                         let h = r.u16().ok_or(bad)?;
-                        if x > MAX_COORD {
-                            return Err(FrameError::FieldOutOfRange { field: Field::X });
-                        }
-                        if y > MAX_COORD {
-                            return Err(FrameError::FieldOutOfRange { field: Field::Y });
-                        }
-                        if h > MAX_HEADING_MRAD {
-                            return Err(FrameError::FieldOutOfRange {
-                                field: Field::Heading,
-                            });
-                        }
+                        check_pose(x, y, h)?;
                         GroupMsg::Target {
                             x,
                             y,
