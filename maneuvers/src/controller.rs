@@ -271,6 +271,8 @@ impl Controller {
     ) -> (Command, bool) {
         let cfg = self.cfg;
         let safety = &cfg.safety;
+        // The goal of a point, moved into the goal area.
+        let mut goal = None;
         let (desired, holding) = match plan.guidance {
             Guidance::Hold => (IVec2::ZERO, true),
             Guidance::VelocityF(v) => (IVec2::new(fx_from_f32(v.x), fx_from_f32(v.y)), false),
@@ -280,6 +282,7 @@ impl Controller {
             ),
             Guidance::Point { x, y, speed_mm_s } => {
                 let (x, y) = safety.clamp_goal(x, y);
+                goal = Some((x, y));
                 let err = IVec2::from_units(i32::from(x), i32::from(y)) - me.pos;
                 // Slowing down at 1/s: 2.5 mm/s per tracking unit of distance.
                 let speed = fx(i32::from(speed_mm_s)).min(err.norm() * 5 / 2);
@@ -308,10 +311,7 @@ impl Controller {
         }
         let refused = gate(safety, me, fresh, cmd);
         if refused.is_ok() {
-            if let (Guidance::Point { x, y, .. }, true, false) =
-                (plan.guidance, self.cfg.use_move_xy, pushed)
-            {
-                let (x, y) = safety.clamp_goal(x, y);
+            if let (Some((x, y)), true, false) = (goal, self.cfg.use_move_xy, pushed) {
                 return (Command::MoveXy { x, y }, false);
             }
             return (to_command(cmd), pushed);
@@ -407,6 +407,8 @@ fn nearest_of(fresh: &[Neighbour], x: u16, y: u16, k: u8) -> Vec<Neighbour, MAX_
 }
 
 /// Clamped to what the LBC accepts.
+// Out of line: its two clamps inlined at each of its five uses made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 fn to_command(c: Sv) -> Command {
     Command::MoveSv {
         steering_mrad: c.steering_mrad.clamp(-STEER_LIMIT, STEER_LIMIT),

@@ -109,6 +109,8 @@ pub fn steering_for(gain_q8: u16, e: i32, velocity: i32) -> i16 {
 }
 
 /// A speed in 1/16 mm/s as whole mm/s within `i16`.
+// Out of line: its clamps inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 fn mm_s(v: i32) -> i16 {
     unfx(v).max(-i32::from(i16::MAX)).min(i32::from(i16::MAX)) as i16
 }

@@ -61,6 +61,8 @@ pub const fn fx(v: i32) -> i32 {
 }
 
 /// `v` rounded to whole units, halves away from zero.
+// Out of line: its two rounding branches inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub const fn unfx(v: i32) -> i32 {
     if v >= 0 {
         (v + ONE / 2) >> FRAC
@@ -91,17 +93,23 @@ pub const fn wrap(a: i32) -> i32 {
 }
 
 /// mrad (|mrad| below 2^31 / 11, 31 000 turns) to a binary angle, rounded (not wrapped).
+// Out of line: its 64-bit product inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub const fn from_mrad(mrad: i32) -> i32 {
     mul_shift(mrad as i64, MRAD_TO_BAM_Q32, 32)
 }
 
 /// A binary angle to mrad, rounded.
+// Out of line, like `from_mrad`.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub const fn to_mrad(bam: i32) -> i32 {
     mul_shift(bam as i64, BAM_TO_MRAD_Q32, 32)
 }
 
 /// Sine and cosine of binary angle `a`, Q14 (linear interpolation of the quarter-wave table of
 /// [`crate::imath`]).
+// Out of line: its two table look-ups inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub fn sin_cos(a: i32) -> (i32, i32) {
     // The table's binary angle has 2^18 steps per turn.
     let b = (a as u32) << 2;
@@ -259,6 +267,8 @@ impl IVec2 {
     }
 
     /// Squared length (exact).
+    // Out of line: its two 64-bit products inlined at each use made the firmware larger.
+    #[cfg_attr(target_arch = "riscv32", inline(never))]
     pub const fn len2(self) -> u64 {
         let (x, y) = (self.x as i64, self.y as i64);
         (x * x + y * y) as u64

@@ -21,6 +21,8 @@ const QUARTER: [i16; 129] = [
 ];
 
 /// Largest `r` with `r * r <= v` (floor of the square root).
+// Out of line: its loop inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub fn isqrt(v: u32) -> u32 {
     // Bit by bit, from the highest even bit of v.
     let mut rem = v;
@@ -43,6 +45,8 @@ pub fn isqrt(v: u32) -> u32 {
 
 /// `dx * dx + dy * dy`, saturated at `u32::MAX` (exact while below it: for components up to
 /// 46 340, far beyond the arena's 1 000 units).
+// Out of line: its saturating products inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub fn dist2(dx: i32, dy: i32) -> u32 {
     let (x, y) = (dx.unsigned_abs(), dy.unsigned_abs());
     x.saturating_mul(x).saturating_add(y.saturating_mul(y))

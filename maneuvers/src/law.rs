@@ -255,20 +255,27 @@ pub fn error_units(e: f32) -> u16 {
 
 /// An error in 1/16 tracking unit ([`crate::fixed`]) in whole units (truncated, saturated to
 /// `0..=u16::MAX`).
+// Out of line: its clamps inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub fn error_units_fx(e: i32) -> u16 {
     (e.max(0) >> crate::fixed::FRAC).min(i32::from(u16::MAX)) as u16
+}
+
+/// A velocity in 1/16 mm/s ([`crate::fixed`]) in whole mm/s, rounded (saturated to `i16`).
+// Out of line: its rounding and clamps inlined at each use made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
+fn velocity_mm_s(v: crate::fixed::IVec2) -> (i16, i16) {
+    let (x, y) = v.to_units();
+    let sat = |c: i32| c.max(-i32::from(i16::MAX)).min(i32::from(i16::MAX)) as i16;
+    (sat(x), sat(y))
 }
 
 impl Guidance {
     /// A velocity in 1/16 mm/s ([`crate::fixed`]) as [`Guidance::Velocity`], rounded to whole
     /// mm/s (saturated to `i16`).
     pub fn velocity(v: crate::fixed::IVec2) -> Guidance {
-        let (x, y) = v.to_units();
-        let sat = |c: i32| c.max(-i32::from(i16::MAX)).min(i32::from(i16::MAX)) as i16;
-        Guidance::Velocity {
-            vx_mm_s: sat(x),
-            vy_mm_s: sat(y),
-        }
+        let (vx_mm_s, vy_mm_s) = velocity_mm_s(v);
+        Guidance::Velocity { vx_mm_s, vy_mm_s }
     }
 }
 

@@ -105,6 +105,8 @@ fn travelled(velocity: i32, t_us: u32) -> i32 {
 }
 
 /// How far `velocity` (1/16 mm/s) goes in `t_us` microseconds, 1/16 tracking unit.
+// Out of line: inlined at each use, it made the firmware larger.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
 pub(crate) fn travel(velocity: IVec2, t_us: u32) -> IVec2 {
     IVec2::new(travelled(velocity.x, t_us), travelled(velocity.y, t_us))
 }
