@@ -53,12 +53,11 @@ impl<C: Gated> SendGate<C> {
     pub fn offer(&mut self, now_us: u64, next: C, may_send: bool) -> Option<C> {
         let due = match self.sent {
             None => true,
-            Some((last, at)) => {
-                let since = now_us.saturating_sub(at);
-                (next.is_stop() && !last.is_stop())
-                    || (since >= MIN_INTERVAL_US && next.differs_from(&last))
-                    || since >= REFRESH_US
-            }
+            Some((last, at)) => due(
+                super::sat_sub(now_us, at),
+                next.is_stop() && !last.is_stop(),
+                next.differs_from(&last),
+            ),
         };
         if due && may_send {
             self.sent = Some((next, now_us));
@@ -73,6 +72,14 @@ impl<C: Gated> SendGate<C> {
     pub fn reset(&mut self) {
         self.sent = None;
     }
+}
+
+/// Whether a command goes out `since_us` after the last one: at once when it `stops` the car,
+/// after [`MIN_INTERVAL_US`] when it `differs`, after [`REFRESH_US`] anyway.
+// Out of line: one copy for every kind of command the gates thin out.
+#[cfg_attr(target_arch = "riscv32", inline(never))]
+fn due(since_us: u64, stops: bool, differs: bool) -> bool {
+    stops || (since_us >= MIN_INTERVAL_US && differs) || since_us >= REFRESH_US
 }
 
 impl Gated for Motion {
@@ -96,7 +103,7 @@ pub fn neighbours<const N: usize>(
         let (Address::Car(car), Some((s, at))) = (n.addr, n.state) else {
             continue;
         };
-        let age = now_us.saturating_sub(at);
+        let age = super::sat_sub(now_us, at);
         let _ = out.push(Neighbour {
             id: car.get(),
             pose: CarPose {

@@ -19,7 +19,7 @@ use super::group::{lbc_command, Group};
 use super::leds::LedState;
 use super::maneuver::Maneuver;
 use super::user::{NoProgram, UserProgram};
-use super::{BytePort, Clock, LogSink};
+use super::{sat_sub, BytePort, Clock, LogSink};
 use user_loop::UserState;
 
 /// Stream variables the program always asks for: position (1), steering and velocity (2),
@@ -194,46 +194,52 @@ struct Vehicle {
 }
 
 /// The UBC program.
+// `repr(C)`: the fields lie in the order written, the small ones first, within the 2 KiB an
+// instruction's offset reaches from the program's address; the radio's state (4.4 KB) last.
+// In Rust's order it came second and pushed the others out of reach: three instructions for
+// each access instead of one.
 #[derive(Debug)]
+#[repr(C)]
 pub struct Program {
-    cfg: Config,
-    client: Client,
-    mac: Option<CarMac>,
     started_us: Option<u64>,
-    phase: Phase,
-    step: usize,
-    retry_at_us: u64,
-    attempts: u32,
-    had_failure: bool,
     lbc_error_at_us: Option<u64>,
-    lbc_failures: u32,
-    car_id: Option<u8>,
-    drive_enabled: bool,
-    streaming_wanted: bool,
     last_stream_us: Option<u64>,
-    next_ping_us: u64,
-    vehicle: Vehicle,
-    maneuver: Maneuver,
-    group: Group,
-    camera: Camera,
-    user: UserState,
     last_ground_us: Option<u64>,
-    user_lost: bool,
-    leds_sent: Option<(LedPattern, LedPattern)>,
-    key_words: Vec<u16, 8>,
-    /// The radio runs with the key (and the boot counter was incremented).
-    keyed: bool,
-    boot: u16,
-    owned: Vec<(Token, Owner), MAX_OWNED>,
-    counters: Counters,
-    lbc_tx: [u8; lbc_link::MAX_FRAME_LEN],
+    retry_at_us: u64,
+    next_ping_us: u64,
+    step: usize,
+    attempts: u32,
+    lbc_failures: u32,
     lbc_tx_len: usize,
     lbc_tx_pos: usize,
-    radio_tx: [u8; RADIO_TX],
     radio_tx_len: usize,
     radio_tx_pos: usize,
+    boot: u16,
+    car_id: Option<u8>,
+    phase: Phase,
+    had_failure: bool,
+    drive_enabled: bool,
+    streaming_wanted: bool,
+    user_lost: bool,
+    /// The radio runs with the key (and the boot counter was incremented).
+    keyed: bool,
+    leds_sent: Option<(LedPattern, LedPattern)>,
+    vehicle: Vehicle,
+    counters: Counters,
+    cfg: Config,
+    key_words: Vec<u16, 8>,
+    maneuver: Maneuver,
+    user: UserState,
+    group: Group,
+    owned: Vec<(Token, Owner), MAX_OWNED>,
+    client: Client,
+    lbc_tx: [u8; lbc_link::MAX_FRAME_LEN],
+    radio_tx: [u8; RADIO_TX],
+    mac: Option<CarMac>,
+    camera: Camera,
 }
 
+/// `v` milliseconds in microseconds.
 fn ms(v: u32) -> u64 {
     u64::from(v) * 1_000
 }
@@ -390,25 +396,24 @@ impl Program {
     pub fn status(&self, now_us: u64) -> Status {
         let v = &self.vehicle;
         let mut f = 0;
-        let stream_age = self.last_stream_us.map(|t| now_us.saturating_sub(t));
+        let stream_age = self.last_stream_us.map(|t| sat_sub(now_us, t));
         let fresh = stream_age.is_some_and(|a| a <= ms(self.cfg.stream_timeout_ms));
-        for (on, bit) in [
-            (self.drive_enabled, flags::DRIVE_ENABLED),
-            (self.phase == Phase::Running && fresh, flags::STREAMING),
-            (self.user_link(now_us), flags::USER_LINK),
-            (v.battery_low, flags::BATTERY_LOW),
-            (v.over_temperature, flags::OVER_TEMPERATURE),
-            (
-                self.maneuver.active() || self.group.active() || self.user.running,
-                flags::MANEUVER,
-            ),
-            (self.lbc_error(now_us), flags::LBC_ERROR),
-            (v.have_pose && fresh, flags::POSE_VALID),
-        ] {
+        let mut set = |on: bool, bit: u8| {
             if on {
                 f |= bit;
             }
-        }
+        };
+        set(self.drive_enabled, flags::DRIVE_ENABLED);
+        set(self.phase == Phase::Running && fresh, flags::STREAMING);
+        set(self.user_link(now_us), flags::USER_LINK);
+        set(v.battery_low, flags::BATTERY_LOW);
+        set(v.over_temperature, flags::OVER_TEMPERATURE);
+        set(
+            self.maneuver.active() || self.group.active() || self.user.running,
+            flags::MANEUVER,
+        );
+        set(self.lbc_error(now_us), flags::LBC_ERROR);
+        set(v.have_pose && fresh, flags::POSE_VALID);
         let (index, len) = match self.maneuver.state() {
             super::ManeuverState::Driving { index } => (index, self.maneuver.points().len() as u8),
             _ if self.user.running => self.user.progress,
@@ -431,7 +436,7 @@ impl Program {
             stream_age_ms: stream_age.map_or(u16::MAX, |a| sat16(a / 1_000)),
             bringups: self.counters.bringups.min(0xFFFF) as u16,
             lbc_failures: self.lbc_failures.min(0xFFFF) as u16,
-            uptime_s: (now_us.saturating_sub(self.started_us.unwrap_or(now_us)) / 1_000_000) as u16,
+            uptime_s: (sat_sub(now_us, self.started_us.unwrap_or(now_us)) / 1_000_000) as u16,
             group_kind: self.group.law_id(),
             group_phase: g.phase.bits(),
             group_converged: g.converged,
@@ -441,12 +446,12 @@ impl Program {
 
     fn user_link(&self, now: u64) -> bool {
         self.last_ground_us
-            .is_some_and(|t| now.saturating_sub(t) <= ms(self.cfg.user_link_timeout_ms))
+            .is_some_and(|t| sat_sub(now, t) <= ms(self.cfg.user_link_timeout_ms))
     }
 
     fn lbc_error(&self, now: u64) -> bool {
         self.lbc_error_at_us
-            .is_some_and(|t| now.saturating_sub(t) < ms(self.cfg.error_led_ms))
+            .is_some_and(|t| sat_sub(now, t) < ms(self.cfg.error_led_ms))
     }
 
     /// Runs everything due at the clock's time: reads both UARTs, handles events and timers,
@@ -669,6 +674,13 @@ impl Program {
             }
             Err(_) => false,
         }
+    }
+
+    /// Sends `STOP` to the LBC, if the client takes it.
+    // Out of line: one call instead of the command and its owner built at each use.
+    #[cfg_attr(target_arch = "riscv32", inline(never))]
+    fn send_stop(&mut self, now: u64) {
+        let _ = self.send(now, Command::Stop, Owner::Stop);
     }
 
     fn take_owner(&mut self, token: Token) -> Option<Owner> {
@@ -930,7 +942,7 @@ impl Program {
         self.lbc_failures += 1;
         self.lbc_error_at_us = Some(now);
         log.log(now, LogEvent::LbcLost);
-        let _ = self.send(now, Command::Stop, Owner::Stop);
+        self.send_stop(now);
         self.stop_maneuvers(now, log);
         if let Some(m) = self.mac.as_mut() {
             // Heartbeats take over from the state broadcast: they must not advertise the
@@ -983,7 +995,7 @@ impl Program {
             match self.maneuver.update(x, y, self.cfg.arrive_radius) {
                 Some(Some(p)) => self.drive_to(now, p),
                 Some(None) => {
-                    let _ = self.send(now, Command::Stop, Owner::Stop);
+                    self.send_stop(now);
                     log.log(now, LogEvent::ManeuverDone);
                     self.notice(now, Notice::ManeuverDone);
                 }
@@ -1101,7 +1113,7 @@ impl Program {
             Phase::Backoff if now >= self.retry_at_us => self.start_bringup(now, log),
             Phase::Running if self.streaming_wanted => {
                 let last = self.last_stream_us.unwrap_or(now);
-                if now.saturating_sub(last) > ms(self.cfg.stream_timeout_ms) {
+                if sat_sub(now, last) > ms(self.cfg.stream_timeout_ms) {
                     self.lbc_lost(now, log);
                 }
             }
@@ -1115,12 +1127,12 @@ impl Program {
             _ => {}
         }
         if let (Some(g), false) = (self.last_ground_us, self.user_lost) {
-            if now.saturating_sub(g) > ms(self.cfg.user_link_timeout_ms) {
+            if sat_sub(now, g) > ms(self.cfg.user_link_timeout_ms) {
                 self.user_lost = true;
                 self.counters.user_links_lost += 1;
                 log.log(now, LogEvent::UserLinkLost);
                 self.stop_maneuvers(now, log);
-                let _ = self.send(now, Command::Stop, Owner::Stop);
+                self.send_stop(now);
                 self.notice(now, Notice::UserLinkLost);
             }
         }
@@ -1309,7 +1321,7 @@ impl Program {
             }
             Request::ManeuverStop => {
                 self.stop_maneuvers(now, log);
-                let _ = self.send(now, Command::Stop, Owner::Stop);
+                self.send_stop(now);
                 self.respond(id, Tag::ManeuverStop as u8, &Reply::ManeuverStopped);
             }
             Request::GroupStart(params) => {
@@ -1321,7 +1333,7 @@ impl Program {
                 }
                 self.stop_maneuvers(now, log);
                 if params.is_idle() {
-                    let _ = self.send(now, Command::Stop, Owner::Stop);
+                    self.send_stop(now);
                 } else {
                     self.group.start(params);
                     if let Some(maneuvers::AnyLaw::CameraFollow(c)) = self.group.law() {
@@ -1341,7 +1353,7 @@ impl Program {
             Request::ProgramStart(args) => return self.program_start(now, id, args, log),
             Request::ProgramStop => {
                 self.stop_maneuvers(now, log);
-                let _ = self.send(now, Command::Stop, Owner::Stop);
+                self.send_stop(now);
                 self.respond(id, Tag::ProgramStop as u8, &Reply::ProgramStopped);
             }
         }

@@ -5,7 +5,7 @@ use super::super::console::{Notice, Refusal, Reply, Tag};
 use super::super::group::{lbc_command, neighbours, SendGate};
 use super::super::user::{self, ProgramInput, UserProgram};
 use super::super::LogSink;
-use super::{Command, LogEvent, Owner, Phase, Program};
+use super::{LogEvent, Owner, Phase, Program};
 use radio_mac::{CarMac, IncomingId};
 
 /// The program loop's state (the loop itself is passed to [`Program::poll_with`]).
@@ -96,7 +96,7 @@ impl Program {
             }
             user::Step::Done => {
                 self.user.running = false;
-                let _ = self.send(now, Command::Stop, Owner::Stop);
+                self.send_stop(now);
                 log.log(now, LogEvent::ProgramDone);
                 self.notice(now, Notice::ManeuverDone);
             }
