@@ -473,7 +473,8 @@ module rv_core #(
 
     wire hold = seq == S_CNT || trap_in || two_ph || (ex && stall);
     // MRET (rs2v = mepc) and TRAP (rs2v = mtvec) share one path from rs2v to the fetch address:
-    // `seq_pc` is trap_pc in TRAP and next_pc otherwise.
+    // `seq_pc` is trap_pc in TRAP and next_pc otherwise. (next_pc and trap_pc above serve
+    // only the retirement records, which are written outside TRAP and in it respectively.)
     wire        in_trap  = seq == S_TRAP;
     wire [31:0] rs2_pc   = {rs2v[31:6],
                             rs2v[5:2] | (in_trap && mcause_int && rs2v[0] ? mcause_code : 4'd0),
