@@ -399,8 +399,14 @@ fn nearest_of(fresh: &[Neighbour], x: u16, y: u16, k: u8) -> Vec<Neighbour, MAX_
     let mut out: Vec<Neighbour, MAX_NEIGHBOURS> = Vec::new();
     for n in fresh {
         let at = out.iter().position(|o| d2(o) > d2(n)).unwrap_or(out.len());
-        // At most MAX_NEIGHBOURS fresh neighbours: never full.
-        let _ = out.insert(at, *n);
+        // At most MAX_NEIGHBOURS fresh neighbours: never full. Pushed and swapped down to
+        // `at` rather than `insert`ed: `insert` shifts with an overlapping copy, which links
+        // `memmove` into the firmware.
+        if out.push(*n).is_ok() {
+            for j in (at + 1..out.len()).rev() {
+                out.swap(j - 1, j);
+            }
+        }
     }
     out.truncate(usize::from(k));
     out

@@ -963,7 +963,9 @@ impl<const N: usize> Endpoint<N> {
                     matches!(p.kind, PendingKind::Acked) && p.dst == src && p.seq == seq
                 }) {
                     Some(i) => {
-                        let p = self.pending.swap_remove(i);
+                        let Some(p) = take(&mut self.pending, i) else {
+                            return;
+                        };
                         self.emit(Event::Reply {
                             handle: p.handle,
                             from: src,
@@ -1088,7 +1090,9 @@ impl<const N: usize> Endpoint<N> {
                 }
                 i += 1;
             } else {
-                let p = self.pending.swap_remove(i);
+                let Some(p) = take(&mut self.pending, i) else {
+                    break;
+                };
                 match kind {
                     PendingKind::Acked => {
                         self.stats.failures += 1;
@@ -1143,5 +1147,36 @@ impl<const N: usize> Endpoint<N> {
             t = t.min(soon);
         }
         t
+    }
+}
+
+/// Removes item `i` and puts the last one in its place, as `swap_remove` does, `None` when
+/// `i` is out of range. heapless's `swap_remove` moves the last item with `ptr::copy`,
+/// which may overlap and so links `memmove` (740 bytes) into the firmware; this one swaps it
+/// in, which never overlaps.
+fn take<T, const N: usize>(v: &mut Vec<T, N>, i: usize) -> Option<T> {
+    if i >= v.len() {
+        return None;
+    }
+    let mut item = v.pop()?;
+    if let Some(slot) = v.get_mut(i) {
+        core::mem::swap(slot, &mut item);
+    }
+    Some(item)
+}
+
+#[cfg(test)]
+mod take_tests {
+    use super::*;
+
+    #[test]
+    fn take_is_swap_remove() {
+        let items: Vec<u32, 4> = Vec::from_slice(&[10, 11, 12, 13]).unwrap();
+        for i in 0..5 {
+            let (mut a, mut b) = (items.clone(), items.clone());
+            let expected = (i < b.len()).then(|| b.swap_remove(i));
+            assert_eq!(take(&mut a, i), expected, "{i}");
+            assert_eq!(a, b, "{i}");
+        }
     }
 }

@@ -693,7 +693,13 @@ impl Program {
 
     fn take_owner(&mut self, token: Token) -> Option<Owner> {
         let i = self.owned.iter().position(|(t, _)| *t == token)?;
-        Some(self.owned.swap_remove(i).1)
+        // The last entry swapped into the hole: `swap_remove` moves it with `ptr::copy`,
+        // which may overlap and would link `memmove` into the firmware.
+        let mut item = self.owned.pop()?;
+        if let Some(slot) = self.owned.get_mut(i) {
+            core::mem::swap(slot, &mut item);
+        }
+        Some(item.1)
     }
 
     fn on_link<S: LogSink + ?Sized>(&mut self, now: u64, e: LinkEvent, log: &mut S) {
