@@ -41,11 +41,13 @@ pub use wire::{
 use endpoint::{HEARTBEAT_US, STALE_AFTER_US};
 use schedule::Schedule;
 
-/// `a - b`, or 0 when `b` is later: the age of a timestamp.
+/// `a - b`, or 0 when `b` is later: the age of a timestamp (microseconds since `b` at `a`).
+/// The UBC program's elapsed times use it too.
 // Out of line: 64-bit saturating subtraction inlined at each of its dozen uses cost more
 // image than the calls.
 #[inline(never)]
-pub(crate) fn sat_sub(a: u64, b: u64) -> u64 {
+#[must_use]
+pub fn sat_sub(a: u64, b: u64) -> u64 {
     a.saturating_sub(b)
 }
 

@@ -23,12 +23,9 @@ pub use machine::{
 };
 pub use maneuver::{Maneuver, ManeuverState};
 
-/// `a - b`, or 0 when `b` is later than `a`: the time elapsed since `b` at `a`.
-// Out of line: `u64::saturating_sub` inlined at each use made the image larger.
-#[inline(never)]
-pub(crate) fn sat_sub(a: u64, b: u64) -> u64 {
-    a.saturating_sub(b)
-}
+/// `a - b`, or 0 when `b` is later than `a`: the time elapsed since `b` at `a` (one
+/// out-of-line copy for the radio MAC and the program).
+pub(crate) use radio_mac::sat_sub;
 
 /// A monotonic microsecond clock.
 pub trait Clock {
