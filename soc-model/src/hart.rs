@@ -1,4 +1,4 @@
-//! Golden RV32IMAC + Zicsr machine-mode instruction-set model: the reference the RTL core is
+//! Golden RV32IMAC + Zcb + Zicsr machine-mode instruction-set model: the reference the RTL core is
 //! checked against, one retired instruction at a time. It follows the privileged spec's
 //! choices the core makes (documented in docs/soft-core.md): direct or vectored mtvec (a
 //! vectored table is 64-byte aligned), mtval is zero for EBREAK,

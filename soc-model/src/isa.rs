@@ -1,4 +1,4 @@
-//! RV32IMAC + Zicsr instruction encoders, so tests and tools can build programs without an
+//! RV32IMAC + Zcb + Zicsr instruction encoders, so tests and tools can build programs without an
 //! assembler. Register operands are `u8` numbers 0..=31; immediates are taken modulo their
 //! field width (callers keep them in range).
 
@@ -352,6 +352,42 @@ pub mod c {
     pub fn sw(p: u8, q: u8, uimm: u32) -> u16 {
         mem(0b110, p, q, uimm)
     }
+    fn zcb_mem(f6lo: u16, p: u8, q: u8, b6: u16, uimm: u32) -> u16 {
+        let u = uimm as u16;
+        0b100 << 13 | f6lo << 10 | rp(q) << 7 | b6 << 6 | ((u >> 1) & 1) << 5 | rp(p) << 2
+    }
+    /// C.LBU (Zcb): p = mem[q + uimm] as a byte, zero-extended (uimm 0..4).
+    pub fn lbu(p: u8, q: u8, uimm: u32) -> u16 {
+        zcb_mem(0b000, p, q, (uimm & 1) as u16, uimm)
+    }
+    /// C.LHU (Zcb): p = halfword at q + uimm, zero-extended (uimm 0 or 2).
+    pub fn lhu(p: u8, q: u8, uimm: u32) -> u16 {
+        zcb_mem(0b001, p, q, 0, uimm)
+    }
+    /// C.LH (Zcb): p = halfword at q + uimm, sign-extended (uimm 0 or 2).
+    pub fn lh(p: u8, q: u8, uimm: u32) -> u16 {
+        zcb_mem(0b001, p, q, 1, uimm)
+    }
+    /// C.SB (Zcb): the low byte of p to q + uimm (uimm 0..4).
+    pub fn sb(p: u8, q: u8, uimm: u32) -> u16 {
+        zcb_mem(0b010, p, q, (uimm & 1) as u16, uimm)
+    }
+    /// C.SH (Zcb): the low halfword of p to q + uimm (uimm 0 or 2).
+    pub fn sh(p: u8, q: u8, uimm: u32) -> u16 {
+        zcb_mem(0b011, p, q, 0, uimm)
+    }
+    /// C.ZEXT.B (Zcb): p &= 255.
+    pub fn zext_b(p: u8) -> u16 {
+        0b10_0111 << 10 | rp(p) << 7 | 0b11_000 << 2 | 1
+    }
+    /// C.NOT (Zcb): p = !p.
+    pub fn not(p: u8) -> u16 {
+        0b10_0111 << 10 | rp(p) << 7 | 0b11_101 << 2 | 1
+    }
+    /// C.MUL (Zcb, with M): p *= q (the low 32 bits).
+    pub fn mul(p: u8, q: u8) -> u16 {
+        0b10_0111 << 10 | rp(p) << 7 | 0b10 << 5 | rp(q) << 2 | 1
+    }
     /// C.NOP.
     pub const NOP: u16 = 0x0001;
     /// C.EBREAK.
@@ -469,7 +505,8 @@ pub mod c_random {
 
     /// Two random compressed instructions packed in one word (the first in the low half):
     /// ALU forms and HINTs (writes to x0), loads and stores through x8 and sp (which must hold
-    /// word-aligned data addresses with 256 bytes of room), a C.ADDI16SP pair that leaves sp
+    /// word-aligned data addresses with 256 bytes of room), the Zcb forms (byte and halfword
+    /// loads and stores through x8, C.ZEXT.B, C.NOT, C.MUL), a C.ADDI16SP pair that leaves sp
     /// as it was, C.EBREAK, and reserved or foreign encodings (illegal). Registers written are
     /// those `free` accepts (or x0); `g` gives random words.
     pub fn pair(g: &mut dyn FnMut() -> u32, free: &dyn Fn(u8) -> bool) -> u32 {
@@ -496,7 +533,7 @@ pub mod c_random {
         let sh = |g: &mut dyn FnMut() -> u32| 1 + (g() % 31) as u8;
         let any = |g: &mut dyn FnMut() -> u32| (g() % 32) as u8;
         let anyp = |g: &mut dyn FnMut() -> u32| 8 + (g() % 8) as u8;
-        match g() % 24 {
+        match g() % 28 {
             0 => c::addi(reg(g, true), imm6(g)),
             1 => c::li(reg(g, true), imm6(g)),
             2 => {
@@ -572,6 +609,35 @@ pub mod c_random {
             16 | 17 => c::swsp(any(g), 4 * (g() % 64)),
             18 => c::NOP,
             19 => c::EBREAK,
+            24 => {
+                let r = reg(g, false);
+                if r == 0 {
+                    return c::NOP;
+                }
+                match g() % 3 {
+                    0 => c::lbu(r, 8, g() % 4),
+                    1 => c::lhu(r, 8, g() % 2 * 2),
+                    _ => c::lh(r, 8, g() % 2 * 2),
+                }
+            }
+            25 => {
+                if g().is_multiple_of(2) {
+                    c::sb(anyp(g), 8, g() % 4)
+                } else {
+                    c::sh(anyp(g), 8, g() % 2 * 2)
+                }
+            }
+            26 | 27 => {
+                let r = reg(g, false);
+                if r == 0 {
+                    return c::NOP;
+                }
+                match g() % 3 {
+                    0 => c::zext_b(r),
+                    1 => c::not(r),
+                    _ => c::mul(r, anyp(g)),
+                }
+            }
             20 | 21 => {
                 // reserved or foreign encodings: illegal
                 let junk = g() as u16;
@@ -579,14 +645,15 @@ pub mod c_random {
                     0x0000,
                     0x2000 | (junk & 0x1ffc),        // C.FLD
                     0x6000 | (junk & 0x1ffc),        // C.FLW
-                    0x8000 | (junk & 0x1ffc),        // reserved
+                    0x9000 | (junk & 0x0ffc),        // reserved (quadrant 0, funct6 1001xx)
                     0x4002 | (junk & 0x107c),        // C.LWSP x0
                     0x8002,                          // C.JR x0
                     0x6101,                          // C.ADDI16SP 0
                     0x1002 | (junk & 0x0ffc),        // C.SLLI by 32+
                     0x9c01 | (junk & 0x039c) | 0x20, // C.SUBW/C.ADDW/reserved
+                    0x9c61 | (junk & 0x0380) | (4 + (junk >> 14) * 4), // C.SEXT.B..C.ZEXT.W
                     0xa002 | (junk & 0x1ffc),        // C.FSDSP
-                ][(g() % 10) as usize]
+                ][(g() % 11) as usize]
             }
             _ => {
                 // HINTs: writes to x0

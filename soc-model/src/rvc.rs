@@ -1,4 +1,9 @@
-//! The RV32C extension: a compressed (16-bit) instruction's 32-bit equivalent.
+//! The RV32C extension and Zcb: a compressed (16-bit) instruction's 32-bit equivalent.
+//!
+//! Zcb (ratified with the code-size extensions, 2023) adds 16-bit forms of byte and halfword
+//! loads and stores with a small offset, of `andi rd, rd, 255`, `xori rd, rd, -1` and of `mul`:
+//! C.LBU, C.LHU, C.LH, C.SB, C.SH, C.ZEXT.B, C.NOT, C.MUL. Its other forms (C.SEXT.B,
+//! C.ZEXT.H, C.SEXT.H need Zbb; C.ZEXT.W is RV64) stay reserved.
 //!
 //! The core expands compressed instructions in its fetch stage (`rv_core.v`); the models do the
 //! same here and then run the 32-bit form, so only the length (2 bytes: the next instruction
@@ -10,8 +15,8 @@ pub fn is_compressed(fetched: u32) -> bool {
 }
 
 /// The 32-bit instruction that the compressed instruction `c` stands for, or `None` for an
-/// encoding that is reserved or belongs to an extension the core lacks (F, D, RV64/128 forms,
-/// shift amounts of 32 and more): those raise an illegal-instruction exception. HINTs (writes
+/// encoding that is reserved or belongs to an extension the core lacks (F, D, Zbb, RV64/128
+/// forms, shift amounts of 32 and more): those raise an illegal-instruction exception. HINTs (writes
 /// to x0, C.NOP with an immediate, zero shift amounts) are legal and run as the instruction
 /// they expand to.
 pub fn expand(c: u16) -> Option<u32> {
@@ -48,6 +53,20 @@ pub fn expand(c: u16) -> Option<u32> {
             // C.LW: uimm[5:3|2|6]
             let imm = bits(12, 10) << 3 | bit(6) << 2 | bit(5) << 6;
             Some(i_type(LOAD, 2, rdp, rs1p, imm))
+        }
+        (0, 4) => {
+            // Zcb loads and stores: funct6 100 0xy, rs1', uimm[0|1] (halfwords: bit 6 is the
+            // signedness of a load, and must be 0 in a store), rd'/rs2'
+            let half = bit(10) == 1;
+            let imm = bit(5) << 1 | if half { 0 } else { bit(6) };
+            match (bits(12, 11), half, bit(6)) {
+                (0, false, _) => Some(i_type(LOAD, 4, rdp, rs1p, imm)),
+                (0, true, 0) => Some(i_type(LOAD, 5, rdp, rs1p, imm)),
+                (0, true, _) => Some(i_type(LOAD, 1, rdp, rs1p, imm)),
+                (1, false, _) => Some(s_type(0, rs1p, rdp, imm)),
+                (1, true, 0) => Some(s_type(1, rs1p, rdp, imm)),
+                _ => None,
+            }
         }
         (0, 6) => {
             let imm = bits(12, 10) << 3 | bit(6) << 2 | bit(5) << 6;
@@ -88,7 +107,13 @@ pub fn expand(c: u16) -> Option<u32> {
             }
             0 | 1 => None,
             2 => Some(i_type(OPIMM, 7, rs1p, rs1p, imm6)),
-            _ if bit(12) == 1 => None,
+            _ if bit(12) == 1 => match (bits(6, 5), bits(4, 2)) {
+                // Zcb: C.ZEXT.B, C.NOT, C.MUL on rd'
+                (3, 0) => Some(i_type(OPIMM, 7, rs1p, rs1p, 0xff)),
+                (3, 5) => Some(i_type(OPIMM, 4, rs1p, rs1p, 0xfff)),
+                (2, _) => Some(r_type(1, 0, rs1p, rs1p, rdp)),
+                _ => None,
+            },
             _ => {
                 let (f7, f3) = match bits(6, 5) {
                     0 => (0x20, 0),
@@ -149,7 +174,17 @@ mod tests {
         assert_eq!(expand(0x6101), None, "C.ADDI16SP 0");
         assert_eq!(expand(0x1006), None, "C.SLLI by 32+");
         assert_eq!(expand(0x9c01), None, "C.SUBW");
-        assert_eq!(expand(0x8000), None, "reserved quadrant 0");
+        assert_eq!(expand(0x9000), None, "reserved quadrant 0 (funct6 100100)");
+        assert_eq!(expand(0x9c41), Some(isa::mul(8, 8, 8)), "C.MUL");
+        assert_eq!(expand(0x9c61), Some(isa::andi(8, 8, 0xff)), "C.ZEXT.B");
+        assert_eq!(expand(0x9c65), None, "C.SEXT.B (Zbb)");
+        assert_eq!(expand(0x9c69), None, "C.ZEXT.H (Zbb)");
+        assert_eq!(expand(0x9c6d), None, "C.SEXT.H (Zbb)");
+        assert_eq!(expand(0x9c71), None, "C.ZEXT.W (RV64)");
+        assert_eq!(expand(0x9c75), Some(isa::xori(8, 8, -1)), "C.NOT");
+        assert_eq!(expand(0x9c79), None, "reserved C.NOT neighbour");
+        assert_eq!(expand(0x8c40), None, "C.SH with bit 6 set");
+        assert_eq!(expand(0x8000), Some(isa::lbu(8, 8, 0)), "C.LBU");
         assert_eq!(expand(0x9002), Some(isa::EBREAK), "C.EBREAK");
         assert_eq!(expand(0x0001), Some(isa::NOP), "C.NOP");
     }
@@ -201,6 +236,15 @@ mod tests {
             prop_assert_eq!(expand(c::jal(half * 2)), Some(isa::jal(1, half * 2)));
             prop_assert_eq!(expand(c::beqz(p, bhalf * 2)), Some(isa::beq(p, 0, bhalf * 2)));
             prop_assert_eq!(expand(c::bnez(p, bhalf * 2)), Some(isa::bne(p, 0, bhalf * 2)));
+            let (b, h) = ((w % 4) as i32, (w % 2 * 2) as i32);
+            prop_assert_eq!(expand(c::lbu(p, q, b as u32)), Some(isa::lbu(p, q, b)));
+            prop_assert_eq!(expand(c::lhu(p, q, h as u32)), Some(isa::lhu(p, q, h)));
+            prop_assert_eq!(expand(c::lh(p, q, h as u32)), Some(isa::lh(p, q, h)));
+            prop_assert_eq!(expand(c::sb(p, q, b as u32)), Some(isa::sb(p, q, b)));
+            prop_assert_eq!(expand(c::sh(p, q, h as u32)), Some(isa::sh(p, q, h)));
+            prop_assert_eq!(expand(c::zext_b(p)), Some(isa::andi(p, p, 0xff)));
+            prop_assert_eq!(expand(c::not(p)), Some(isa::xori(p, p, -1)));
+            prop_assert_eq!(expand(c::mul(p, q)), Some(isa::mul(p, p, q)));
         }
     }
 }

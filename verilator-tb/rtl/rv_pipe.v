@@ -1,4 +1,4 @@
-// RV32IMAC + Zicsr machine-mode core, pipelined: the FPGA core variant (`docs/fpga.md`).
+// RV32IMAC + Zcb + Zicsr machine-mode core, pipelined: the FPGA core variant (`docs/fpga.md`).
 //
 // Four stages, one instruction each:
 //   F  fetch: `f_pc` addresses the instruction memory (the SoC's RAM answers with the 32 bits
@@ -156,8 +156,16 @@ module rv_pipe #(
     wire        f_jr  = ck == 5'b10_100 && c[6:2] == 5'd0 && c[11:7] != 5'd0;
     wire        f_eb  = ck == 5'b10_100 && c[12:2] == 11'h400;
     wire        f_ssp = ck == 5'b10_110;
+    // Zcb: C.LBU, C.LHU, C.LH, C.SB, C.SH; C.ZEXT.B, C.NOT, C.MUL (the forms that
+    // need Zbb or RV64 stay reserved)
+    wire        f_lb  = ck == 5'b00_100 && c[12:11] == 2'b00;             // C.LBU/LHU/LH
+    wire        f_sb  = ck == 5'b00_100 && c[12:11] == 2'b01 && !(c[10] && c[6]); // C.SB/SH
+    wire        f_zn  = ck == 5'b01_100 && c[12:10] == 3'b111 && c[6:5] == 2'b11 &&
+                        (c[4:2] == 3'b000 || c[4:2] == 3'b101);     // C.ZEXT.B, C.NOT
+    wire        f_mul = ck == 5'b01_100 && c[12:10] == 3'b111 && c[6:5] == 2'b10; // C.MUL
     wire        c_legal = f_a4 | f_lw | f_sw | f_ad | f_j | f_li | f_a16 | f_lui | f_shi |
-                          f_alu | f_b | f_sll | f_lsp | f_mv | f_jr | f_eb | f_ssp;
+                          f_alu | f_b | f_sll | f_lsp | f_mv | f_jr | f_eb | f_ssp |
+                          f_lb | f_sb | f_zn | f_mul;
     wire [31:0] cx =
         ({32{f_a4}}  & {12'd0, 5'd2, 3'b000, 2'b01, cr_d, 7'b0010011}) |
         ({32{f_lw}}  & {12'd0, 2'b01, cr_s, 3'b010, 2'b01, cr_d, 7'b0000011}) |
@@ -178,6 +186,11 @@ module rv_pipe #(
         ({32{f_jr}}  & {12'd0, c[11:7], 3'b000, 4'd0, c[12], 7'b1100111}) |
         ({32{f_eb}}  & 32'h0010_0073) |
         ({32{f_ssp}} & {7'd0, c[6:2], 5'd2, 3'b010, 5'd0, 7'b0100011}) |
+        ({32{f_lb}}  & {12'd0, 2'b01, cr_s, c[10] ? !c[6] : 1'b1, 1'b0, c[10], 2'b01, cr_d,
+                        7'b0000011}) |
+        ({32{f_sb}}  & {7'd0, 2'b01, cr_d, 2'b01, cr_s, 2'b00, c[10], 5'd0, 7'b0100011}) |
+        ({32{f_zn}}  & {12'd0, 2'b01, cr_s, 1'b1, !c[2], !c[2], 2'b01, cr_s, 7'b0010011}) |
+        ({32{f_mul}} & {7'd1, 2'b01, cr_d, 2'b01, cr_s, 3'b000, 2'b01, cr_s, 7'b0110011}) |
         ({32{!c_legal}} & {16'd0, c});
     wire [6:0]  fo = fr[6:0];
     wire [31:0] imm32 =
@@ -197,7 +210,9 @@ module rv_pipe #(
         ({32{f_j}}   & {{21{c[12]}}, c[8], c[10:9], c[6], c[7], c[2], c[11], c[5:3], 1'b0}) |
         ({32{f_b}}   & {{24{c[12]}}, c[6:5], c[2], c[11:10], c[4:3], 1'b0}) |
         ({32{f_lsp}} & {24'd0, c[3:2], c[12], c[6:4], 2'b00}) |
-        ({32{f_ssp}} & {24'd0, c[8:7], c[12:9], 2'b00});
+        ({32{f_ssp}} & {24'd0, c[8:7], c[12:9], 2'b00}) |
+        ({32{f_lb | f_sb}} & {30'd0, c[5], c[6] & !c[10]}) |
+        ({32{f_zn}}  & {{24{c[2]}}, 8'hFF});
     wire [31:0] fi = fi_c ? cx : fr;
 
     // ================================================================ X: decode

@@ -191,11 +191,17 @@ impl Checker {
         self.hart.irq_lines = mip;
         // DIV, DIVU, REM, REMU (and MUL* on the sequential multiplier) run in the divider's
         // loop, which an interrupt does not break into: one that becomes pending meanwhile is
-        // taken after the instruction.
-        let in_loop = if self.iterative_mul {
-            rtl.insn & 0xfe00_007f == 0x0200_0033
+        // taken after the instruction. A compressed record holds its 16 bits: C.MUL (Zcb) is
+        // the one compressed form that runs there.
+        let insn = if soc_model::rvc::is_compressed(rtl.insn) {
+            soc_model::rvc::expand(rtl.insn as u16).unwrap_or(rtl.insn)
         } else {
-            rtl.insn & 0xfe00_407f == 0x0200_4033
+            rtl.insn
+        };
+        let in_loop = if self.iterative_mul {
+            insn & 0xfe00_007f == 0x0200_0033
+        } else {
+            insn & 0xfe00_407f == 0x0200_4033
         };
         if !rtl.intr && rtl.insn != crate::isa::WFI && !in_loop {
             if let Some(cause) = self.hart.pending_interrupt() {

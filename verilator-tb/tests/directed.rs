@@ -319,7 +319,10 @@ fn exceptions() {
         0x6101 | nop,
         0x1006 | nop,
         0x9c01 | nop,
-        0x8000 | nop,
+        0x9000 | nop, // quadrant 0, funct6 100100: reserved (100000..100011 are Zcb's)
+        0x8c40 | nop, // C.SH with bit 6 set
+        0x9c65 | nop, // C.SEXT.B (Zbb)
+        0x9c71 | nop, // C.ZEXT.W (RV64)
         0xe002 | nop,
     ] {
         expect_trap(&[bad], cause::ILLEGAL_INSTRUCTION, Some(bad & 0xffff));
@@ -357,6 +360,37 @@ fn compressed_instructions() {
     );
     assert_eq!([x[14], x[15], x[16]], [116, 16, 2]);
     assert_eq!(x[usize::from(S0)], x[2].wrapping_add(64));
+}
+
+/// Zcb: byte and halfword loads (zero- and sign-extended) and stores with their 2-bit
+/// offsets, C.ZEXT.B, C.NOT and C.MUL, against the golden model on every core.
+#[test]
+fn zcb_instructions() {
+    let pair = |a: u16, b: u16| u32::from(a) | u32::from(b) << 16;
+    let mut p = Prog::new();
+    p.li(S1, OUT)
+        .li(S0, OUT + 4)
+        .li(A0, 0x8281_80ff)
+        .li(A1, 0x1234_5678);
+    p.i(isa::sw(A0, S1, 0)).i(isa::sw(0, S1, 4));
+    p.i(pair(c::lbu(A2, S1, 0), c::lbu(A3, S1, 3))); // a2 = 0xff, a3 = 0x82
+    p.i(pair(c::lhu(A4, S1, 2), c::lh(A5, S1, 2))); // a4 = 0x8281, a5 = 0xffff_8281
+    p.i(pair(c::sb(A1, S0, 1), c::sh(A1, S0, 2))); // word 1 = 0x5678_7800
+    p.i(isa::lw(16, S1, 4));
+    p.i(pair(c::zext_b(A0), c::not(A1))); // a0 = 0xff, a1 = !0x1234_5678
+    p.li(S0, 3);
+    p.i(pair(c::mul(S0, S1), c::NOP)); // s0 = 3 * OUT
+    p.exit_pass();
+    let (run, _) = run_pass(&p);
+    let x = run.hart.x;
+    assert_eq!(
+        [x[12], x[13], x[14], x[15]],
+        [0xff, 0x82, 0x8281, 0xffff_8281]
+    );
+    assert_eq!(x[16], 0x5678_7800, "C.SB and C.SH");
+    assert_eq!(x[10], 0xff, "C.ZEXT.B");
+    assert_eq!(x[11], !0x1234_5678u32, "C.NOT");
+    assert_eq!(x[usize::from(S0)], OUT.wrapping_mul(3), "C.MUL");
 }
 
 #[test]
