@@ -9,7 +9,7 @@
 //!
 //! Features: `qemu_virt` (board), `defmt` (`defmt::Format` on driver types), `logger` (defmt
 //! global logger over semihosting, riscv32 only), `rt` (riscv-rt interrupt and exception
-//! handlers, riscv32 only).
+//! handlers and the prologue/epilogue register save routines, riscv32 only).
 
 #![cfg_attr(not(test), no_std)]
 
@@ -27,6 +27,8 @@ pub mod mmio;
 pub mod pci;
 pub mod plic;
 pub mod ring;
+#[cfg(all(feature = "rt", target_arch = "riscv32"))]
+mod save_restore;
 pub mod serial;
 pub mod uart;
 pub mod vision_unit;

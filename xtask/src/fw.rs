@@ -15,7 +15,9 @@
 //! 88 KB image. With `rust-lld` the linker also relaxes accesses near the global pointer
 //! (`--relax-gp`; the boards' `memory.x` put `__global_pointer$` in the read-only data): a
 //! constant's address in one instruction instead of two, 512 bytes of a 70 KB image. A rustup
-//! target builds without either.
+//! target builds without either. The same target specification turns on the shared
+//! prologue and epilogue routines (`+save-restore`) and, for the `softcore` board, whose cores
+//! have it, the Zcb extension ([`EXTRA_FEATURES`], [`board_features`]).
 //!
 //! With the Debian toolchain the firmware's paths are also trimmed (cargo's `trim-paths`, see
 //! [`TRIM_PATHS`]): the image names its sources relative to their packages, so the same
@@ -180,7 +182,7 @@ pub fn build_features(board: &str, bin: &str, features: &[&str], release: bool) 
             cmd
         }
     };
-    let target = target_arg(toolchain)?;
+    let target = target_arg(toolchain, board)?;
     cmd.current_dir(&app)
         .arg("--target")
         .arg(&target)
@@ -242,7 +244,7 @@ pub fn clippy(board: &str) -> Result<String> {
             vec!["-p", "ubc-hal", "--features", &hal_features],
         ),
     ];
-    let target = target_arg(toolchain)?;
+    let target = target_arg(toolchain, board)?;
     for (dir, args) in &runs {
         let mut cmd = match toolchain {
             Toolchain::Rustup => clean_command("cargo", false),
@@ -311,10 +313,12 @@ fn is_reservation(name: &str) -> bool {
 
 /// What `--target` names for `toolchain`: the built-in target (rustup), or the relaxed
 /// specification of it ([`relaxed_target_spec`], Debian).
-fn target_arg(toolchain: Toolchain) -> Result<OsString> {
+fn target_arg(toolchain: Toolchain, board: &str) -> Result<OsString> {
     Ok(match toolchain {
         Toolchain::Rustup => TARGET.into(),
-        Toolchain::Debian => relaxed_target_spec(debian_linker().relaxes_gp())?.into_os_string(),
+        Toolchain::Debian => {
+            relaxed_target_spec(debian_linker().relaxes_gp(), board)?.into_os_string()
+        }
     })
 }
 
@@ -325,12 +329,14 @@ fn target_arg(toolchain: Toolchain) -> Result<OsString> {
 /// `-C target-feature=+relax` instead would do the same, but rustc warns about it in every
 /// crate (the feature is not stable). The file is named after the built-in target, so cargo
 /// puts the output under the same `riscv32imac-unknown-none-elf` directory and applies the
-/// same `[target.riscv32imac-unknown-none-elf]` settings and linker variable.
+/// same `[target.riscv32imac-unknown-none-elf]` settings and linker variable; each board has
+/// its own, under `ubc-app/target/spec/<board>/`, with the rest of [`EXTRA_FEATURES`] and the
+/// board's [`board_features`].
 /// With `relax_gp` the linker is also told to relax accesses within 2 KiB of
 /// `__global_pointer$` into `gp`-relative ones (`--relax-gp`, which lld does only when asked
 /// and lld 16 does not know). riscv-rt loads `gp` in `_start`, before any Rust code, and
 /// nothing writes it afterwards (LLVM reserves the register).
-fn relaxed_target_spec(relax_gp: bool) -> Result<PathBuf> {
+fn relaxed_target_spec(relax_gp: bool, board: &str) -> Result<PathBuf> {
     let out = clean_command(DEBIAN_RUSTC, true)
         .env("RUSTC_BOOTSTRAP", "1")
         .args([
@@ -354,7 +360,12 @@ fn relaxed_target_spec(relax_gp: bool) -> Result<PathBuf> {
     let Some(fields) = spec.as_object_mut() else {
         bail!("the {TARGET} specification {DEBIAN_RUSTC} printed is not a JSON object");
     };
-    let features = with_relax(fields.get("features").and_then(|f| f.as_str()));
+    let extra: Vec<&str> = EXTRA_FEATURES
+        .iter()
+        .chain(board_features(board))
+        .copied()
+        .collect();
+    let features = with_features(fields.get("features").and_then(|f| f.as_str()), &extra);
     fields.insert("features".into(), serde_json::Value::String(features));
     fields.insert("llvm-args".into(), serde_json::json!(LLVM_ARGS));
     if relax_gp {
@@ -364,7 +375,7 @@ fn relaxed_target_spec(relax_gp: bool) -> Result<PathBuf> {
         );
     }
     let text = serde_json::to_string_pretty(&spec)?;
-    let dir = app_dir().join("target").join("spec");
+    let dir = app_dir().join("target").join("spec").join(board);
     let path = dir.join(format!("{TARGET}.json"));
     if std::fs::read_to_string(&path).ok().as_deref() != Some(text.as_str()) {
         // Written beside and renamed into place, so a build started meanwhile never reads
@@ -377,13 +388,42 @@ fn relaxed_target_spec(relax_gp: bool) -> Result<PathBuf> {
     Ok(path)
 }
 
-/// A target's feature list with `+relax` in it.
-fn with_relax(features: Option<&str>) -> String {
-    match features.map(str::trim).filter(|f| !f.is_empty()) {
-        Some(f) if f.split(',').any(|x| x.trim() == "+relax") => f.to_string(),
-        Some(f) => format!("{f},+relax"),
-        None => "+relax".to_string(),
+/// Target features the Debian-toolchain build adds to the built-in target's:
+/// - `+relax`: linker relaxation (see [`relaxed_target_spec`]);
+/// - `+save-restore`: a function that keeps callee-saved registers calls one shared routine
+///   in its prologue and jumps to another in its epilogue (`ubc-hal`'s `save_restore`
+///   module) instead of storing and loading each register itself: 2 316 bytes less on a
+///   68 710-byte image, for 3.5 % more awake cycles on the idle firmware (`docs/benchmarks.md`
+///   section 1).
+const EXTRA_FEATURES: [&str; 2] = ["+relax", "+save-restore"];
+
+/// Target features of one board's cores on top of [`EXTRA_FEATURES`]: the soft cores
+/// (`rv_core`, `rv_pipe`) and their model have Zcb, the 16-bit forms of byte and halfword
+/// loads and stores, `andi 255`, `xori -1` and `mul` (920 bytes less, the same instructions
+/// and cycles); QEMU 7.2's `virt` board has not.
+fn board_features(board: &str) -> &'static [&'static str] {
+    match board {
+        "softcore" => &["+zcb"],
+        _ => &[],
     }
+}
+
+/// A target's feature list with each of `extra` in it once.
+fn with_features(features: Option<&str>, extra: &[&str]) -> String {
+    let mut list: Vec<&str> = features
+        .map(|f| {
+            f.split(',')
+                .map(str::trim)
+                .filter(|x| !x.is_empty())
+                .collect()
+        })
+        .unwrap_or_default();
+    for x in extra {
+        if !list.contains(x) {
+            list.push(x);
+        }
+    }
+    list.join(",")
 }
 
 /// The linker of a Debian-toolchain build.
@@ -542,11 +582,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn relax_joins_the_target_features_once() {
-        assert_eq!(with_relax(Some("+m,+a,+c")), "+m,+a,+c,+relax");
-        assert_eq!(with_relax(Some("+m,+relax,+c")), "+m,+relax,+c");
-        assert_eq!(with_relax(Some("")), "+relax");
-        assert_eq!(with_relax(None), "+relax");
+    fn extra_features_join_the_target_features_once() {
+        let x = ["+relax", "+save-restore"];
+        assert_eq!(
+            with_features(Some("+m,+a,+c"), &x),
+            "+m,+a,+c,+relax,+save-restore"
+        );
+        assert_eq!(
+            with_features(Some("+m,+relax,+c"), &x),
+            "+m,+relax,+c,+save-restore"
+        );
+        assert_eq!(with_features(Some(""), &x), "+relax,+save-restore");
+        assert_eq!(with_features(None, &["+relax"]), "+relax");
     }
 
     #[test]
