@@ -7,9 +7,9 @@
 //      file (block RAM, synchronous read) read at the clock edge that ends the stage.
 //   X  execute: operands forwarded from M or from the word written at the edge that began the
 //      cycle; ALU, branches and jumps (resolved here: the instructions fetched behind a taken
-//      one are discarded), CSRs (all in flip-flops), traps and interrupts (taken here, between
-//      instructions), the multiplier, the iterative divider (the pipeline waits), load and
-//      store addresses.
+//      one are discarded; a JAL's target was already fetched from D, see `d_jump`), CSRs (all
+//      in flip-flops), traps and interrupts (taken here, between instructions), the
+//      multiplier, the iterative divider (the pipeline waits), load and store addresses.
 //   M  memory and write-back: the data bus is driven from M's registers; a loaded word is
 //      aligned and written back at the edge that ends the stage, with every other result; an
 //      atomic read-modify-write takes two cycles here. Every instruction retires in M, in
@@ -89,6 +89,7 @@ module rv_pipe #(
     reg        x_c;       // compressed (2 bytes)
     reg [31:0] x_imm;
     reg [31:0] x_raw;     // as fetched, for RVFI
+    reg        x_jd;      // a JAL whose target the fetch already took in D
     reg [31:0] rf_a, rf_b;
     reg        byp_a, byp_b;
     reg [31:0] byp_val;
@@ -433,7 +434,7 @@ module rv_pipe #(
     wire x_trap    = irq_take || (x_exc && m_free);   // an exception's record needs M
     wire [31:0] trap_vec = {mtvec[31:6],
                             mtvec[5:2] | (irq_take && mtvec[0] ? irq_cause : 4'd0), 2'b00};
-    wire redirect_x = x_trap || (x_commit && (jump || is_mret));
+    wire redirect_x = x_trap || (x_commit && ((jump && !x_jd) || is_mret));
     wire [31:0] redirect_pc = smc ? smc_pc : x_trap ? trap_vec : next_pc;
     wire redirect = smc || redirect_x;
 
@@ -466,6 +467,15 @@ module rv_pipe #(
     wire d_to_x   = d_valid && x_leaves && !redirect;
     wire d_free   = !d_valid || d_to_x;
     wire f_to_d   = d_free && !redirect;
+    // JAL, C.J and C.JAL send the fetch to their target as they leave D, from the fetched
+    // bits (not the expansion) so the sum starts early: the word fetched behind them is
+    // discarded, one cycle instead of the two of a jump resolved in X.
+    wire        d_is_jal = fi_c ? f_j : fr[6:0] == 7'b1101111;
+    wire [31:0] d_jimm = fi_c ?
+        {{21{c[12]}}, c[8], c[10:9], c[6], c[7], c[2], c[11], c[5:3], 1'b0} :
+        {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0};
+    wire [31:0] d_target = d_pc + d_jimm;
+    wire        d_jump = d_to_x && d_is_jal;
     // the next fetch address: both sums from the register, the fetched word picks one
     wire [31:0] f_pc2 = f_pc + 32'd2, f_pc4 = f_pc + 32'd4;
     wire [31:0] f_next = imem_rdata[1:0] == 2'b11 ? f_pc4 : f_pc2;
@@ -559,8 +569,9 @@ module rv_pipe #(
         end else begin
             // ---------------------------------------------------- F, D
             if (redirect) f_pc <= redirect_pc;
+            else if (d_jump) f_pc <= d_target;
             else if (f_to_d) f_pc <= f_next;
-            if (f_to_d) begin
+            if (f_to_d && !d_jump) begin
                 d_valid <= 1'b1;
                 d_pc <= f_pc;
                 d_word <= imem_rdata;
@@ -576,6 +587,7 @@ module rv_pipe #(
                 x_c <= fi_c;
                 x_imm <= fi_c ? immc : imm32;
                 x_raw <= fi_c ? {16'd0, c} : fr;
+                x_jd <= d_is_jal;
             end else if (x_leaves) begin
                 x_valid <= 1'b0;
             end
