@@ -32,6 +32,19 @@ macro_rules! routines {
     .globl __riscv_save_4, __riscv_save_5, __riscv_save_6, __riscv_save_7
     .globl __riscv_save_8, __riscv_save_9, __riscv_save_10, __riscv_save_11
     .globl __riscv_save_12
+    .type __riscv_save_0, @function
+    .type __riscv_save_1, @function
+    .type __riscv_save_2, @function
+    .type __riscv_save_3, @function
+    .type __riscv_save_4, @function
+    .type __riscv_save_5, @function
+    .type __riscv_save_6, @function
+    .type __riscv_save_7, @function
+    .type __riscv_save_8, @function
+    .type __riscv_save_9, @function
+    .type __riscv_save_10, @function
+    .type __riscv_save_11, @function
+    .type __riscv_save_12, @function
 __riscv_save_12:
     addi sp, sp, -64
     sw ra, 60(sp)
@@ -48,6 +61,7 @@ __riscv_save_12:
     sw s10, 16(sp)
     sw s11, 12(sp)
     jr t0
+    .size __riscv_save_12, . - __riscv_save_12
 __riscv_save_11:
 __riscv_save_10:
 __riscv_save_9:
@@ -66,6 +80,10 @@ __riscv_save_8:
     sw s9, 4(sp)
     sw s10, 0(sp)
     jr t0
+    .size __riscv_save_11, . - __riscv_save_11
+    .size __riscv_save_10, . - __riscv_save_10
+    .size __riscv_save_9, . - __riscv_save_9
+    .size __riscv_save_8, . - __riscv_save_8
 __riscv_save_7:
 __riscv_save_6:
 __riscv_save_5:
@@ -80,6 +98,10 @@ __riscv_save_4:
     sw s5, 4(sp)
     sw s6, 0(sp)
     jr t0
+    .size __riscv_save_7, . - __riscv_save_7
+    .size __riscv_save_6, . - __riscv_save_6
+    .size __riscv_save_5, . - __riscv_save_5
+    .size __riscv_save_4, . - __riscv_save_4
 __riscv_save_3:
 __riscv_save_2:
 __riscv_save_1:
@@ -90,6 +112,10 @@ __riscv_save_0:
     sw s1, 4(sp)
     sw s2, 0(sp)
     jr t0
+    .size __riscv_save_3, . - __riscv_save_3
+    .size __riscv_save_2, . - __riscv_save_2
+    .size __riscv_save_1, . - __riscv_save_1
+    .size __riscv_save_0, . - __riscv_save_0
 
     .section .text.__riscv_restore, "ax", @progbits
     .p2align 1
@@ -97,6 +123,19 @@ __riscv_save_0:
     .globl __riscv_restore_4, __riscv_restore_5, __riscv_restore_6, __riscv_restore_7
     .globl __riscv_restore_8, __riscv_restore_9, __riscv_restore_10, __riscv_restore_11
     .globl __riscv_restore_12
+    .type __riscv_restore_0, @function
+    .type __riscv_restore_1, @function
+    .type __riscv_restore_2, @function
+    .type __riscv_restore_3, @function
+    .type __riscv_restore_4, @function
+    .type __riscv_restore_5, @function
+    .type __riscv_restore_6, @function
+    .type __riscv_restore_7, @function
+    .type __riscv_restore_8, @function
+    .type __riscv_restore_9, @function
+    .type __riscv_restore_10, @function
+    .type __riscv_restore_11, @function
+    .type __riscv_restore_12, @function
 __riscv_restore_12:
     lw s11, 12(sp)
     addi sp, sp, 16
@@ -128,6 +167,19 @@ __riscv_restore_0:
     lw ra, 12(sp)
     addi sp, sp, 16
     ret
+    .size __riscv_restore_0, . - __riscv_restore_0
+    .size __riscv_restore_1, . - __riscv_restore_1
+    .size __riscv_restore_2, . - __riscv_restore_2
+    .size __riscv_restore_3, . - __riscv_restore_3
+    .size __riscv_restore_4, . - __riscv_restore_4
+    .size __riscv_restore_5, . - __riscv_restore_5
+    .size __riscv_restore_6, . - __riscv_restore_6
+    .size __riscv_restore_7, . - __riscv_restore_7
+    .size __riscv_restore_8, . - __riscv_restore_8
+    .size __riscv_restore_9, . - __riscv_restore_9
+    .size __riscv_restore_10, . - __riscv_restore_10
+    .size __riscv_restore_11, . - __riscv_restore_11
+    .size __riscv_restore_12, . - __riscv_restore_12
 "#
     };
 }

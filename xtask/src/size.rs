@@ -8,8 +8,9 @@
 //! - **by symbol group**: every function and read-only object by the crate its symbol names
 //!   (the path a demangled name starts with, or the trait's crate for `<u8 as Trait>::f`), with
 //!   `compiler_builtins` split into soft-float arithmetic and the rest, unnamed constants
-//!   (`.Lanon.*`) on a row of their own, and the bytes no symbol covers (alignment). Inlined
-//!   code counts for the function it was inlined into.
+//!   (`.Lanon.*`), the shared prologue and epilogue routines and the machine outliner's
+//!   sequences on rows of their own, and the bytes no symbol covers (alignment, jump tables).
+//!   Inlined code counts for the function it was inlined into.
 //!
 //! Both views add up to the text size of [`crate::fw::sizes`].
 
@@ -35,7 +36,7 @@ const TOP_FUNCTIONS: usize = 8;
 /// Row of code the line table does not cover.
 const NO_LINES: &str = "(no line information)";
 /// Row of text no symbol covers.
-const NO_SYMBOL: &str = "(no symbol: alignment)";
+const NO_SYMBOL: &str = "(no symbol: jump tables, alignment)";
 /// Row of unnamed read-only constants.
 const ANON: &str = "read-only constants without a name (`.Lanon.*`)";
 /// Row of soft-float routines.
@@ -135,11 +136,22 @@ fn package_name(dir: &str) -> Option<&str> {
     (semver && !name.is_empty()).then_some(name)
 }
 
+/// The shared prologue and epilogue routines (`ubc-hal`'s `save_restore` module).
+const SAVE_RESTORE: &str = "prologue and epilogue routines (`__riscv_save_*`, `__riscv_restore_*`)";
+/// Sequences the machine outliner moved out of the functions that repeat them.
+const OUTLINED: &str = "outlined sequences (`OUTLINED_FUNCTION_*`)";
+
 /// The group of a demangled symbol name (see the module documentation).
 pub fn group_of_symbol(name: &str) -> String {
     const MEM: [&str; 5] = ["memcpy", "memmove", "memset", "memcmp", "bcmp"];
     if name.starts_with(".Lanon") || name.starts_with(".L__unnamed") {
         return ANON.to_owned();
+    }
+    if name.starts_with("__riscv_save_") || name.starts_with("__riscv_restore_") {
+        return SAVE_RESTORE.to_owned();
+    }
+    if name.starts_with("OUTLINED_FUNCTION_") {
+        return OUTLINED.to_owned();
     }
     let last = name.rsplit("::").next().unwrap_or(name);
     let float_builtin = last.starts_with("__")
@@ -644,6 +656,9 @@ mod tests {
             ("_defmt_acquire", "defmt"),
             ("__rustc::rust_begin_unwind", "core"),
             ("_start", "runtime symbols (riscv-rt, linker script)"),
+            ("__riscv_save_3", SAVE_RESTORE),
+            ("__riscv_restore_12", SAVE_RESTORE),
+            ("OUTLINED_FUNCTION_44", OUTLINED),
         ] {
             assert_eq!(group_of_symbol(name), group, "{name}");
         }
