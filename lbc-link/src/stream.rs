@@ -332,6 +332,9 @@ pub enum SystemValue {
     },
 }
 
+// `inline`: at the firmware's inlining threshold (33) the position reader would call it
+// twice and save registers around the calls, 0.9 more instructions per received byte.
+#[inline]
 fn read_u14(r: &mut Units<'_>) -> u16 {
     r.unit()
 }
