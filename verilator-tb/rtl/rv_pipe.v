@@ -7,9 +7,10 @@
 //      file (block RAM, synchronous read) read at the clock edge that ends the stage.
 //   X  execute: operands forwarded from M or from the word written at the edge that began the
 //      cycle; ALU, branches and jumps (resolved here: the instructions fetched behind a taken
-//      one are discarded; a JAL's target was already fetched from D, see `d_jump`), CSRs (all
-//      in flip-flops), traps and interrupts (taken here, between instructions), the
-//      multiplier, the iterative divider (the pipeline waits), load and store addresses.
+//      one are discarded; a JAL's target, and a backward branch's, were already fetched from
+//      D, see `d_jump`), CSRs (all in flip-flops), traps and interrupts (taken here, between
+//      instructions), the multiplier, the iterative divider (the pipeline waits), load and
+//      store addresses.
 //   M  memory and write-back: the data bus is driven from M's registers; a loaded word is
 //      aligned and written back at the edge that ends the stage, with every other result; an
 //      atomic read-modify-write takes two cycles here. Every instruction retires in M, in
@@ -89,7 +90,7 @@ module rv_pipe #(
     reg        x_c;       // compressed (2 bytes)
     reg [31:0] x_imm;
     reg [31:0] x_raw;     // as fetched, for RVFI
-    reg        x_jd;      // a JAL whose target the fetch already took in D
+    reg        x_jd;      // the fetch already went to the target from D (JAL, backward branch)
     reg [31:0] rf_a, rf_b;
     reg        byp_a, byp_b;
     reg [31:0] byp_val;
@@ -434,7 +435,8 @@ module rv_pipe #(
     wire x_trap    = irq_take || (x_exc && m_free);   // an exception's record needs M
     wire [31:0] trap_vec = {mtvec[31:6],
                             mtvec[5:2] | (irq_take && mtvec[0] ? irq_cause : 4'd0), 2'b00};
-    wire redirect_x = x_trap || (x_commit && ((jump && !x_jd) || is_mret));
+    // a jump the fetch did not take from D, or a backward branch it took that is not taken
+    wire redirect_x = x_trap || (x_commit && ((jump ^ x_jd) || is_mret));
     wire [31:0] redirect_pc = smc ? smc_pc : x_trap ? trap_vec : next_pc;
     wire redirect = smc || redirect_x;
 
@@ -467,15 +469,22 @@ module rv_pipe #(
     wire d_to_x   = d_valid && x_leaves && !redirect;
     wire d_free   = !d_valid || d_to_x;
     wire f_to_d   = d_free && !redirect;
-    // JAL, C.J and C.JAL send the fetch to their target as they leave D, from the fetched
-    // bits (not the expansion) so the sum starts early: the word fetched behind them is
-    // discarded, one cycle instead of the two of a jump resolved in X.
+    // JAL, C.J and C.JAL, and conditional branches backwards (loops: guessed taken), send the
+    // fetch to their target as they leave D, from the fetched bits (not the expansion) so the
+    // sum starts early: the word fetched behind them is discarded, one cycle instead of the
+    // two of a jump resolved in X. X redirects a guessed branch that is not taken to the
+    // instruction after it (two cycles).
     wire        d_is_jal = fi_c ? f_j : fr[6:0] == 7'b1101111;
+    wire        d_is_br  = fi_c ? f_b : fr[6:0] == 7'b1100011;
+    wire        d_back   = fi_c ? c[12] : fr[31];   // the offset's sign
     wire [31:0] d_jimm = fi_c ?
-        {{21{c[12]}}, c[8], c[10:9], c[6], c[7], c[2], c[11], c[5:3], 1'b0} :
-        {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0};
+        (f_b ? {{24{c[12]}}, c[6:5], c[2], c[11:10], c[4:3], 1'b0} :
+               {{21{c[12]}}, c[8], c[10:9], c[6], c[7], c[2], c[11], c[5:3], 1'b0}) :
+        (fr[3] ? {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0} :
+                 {{19{fr[31]}}, fr[31], fr[7], fr[30:25], fr[11:8], 1'b0});
     wire [31:0] d_target = d_pc + d_jimm;
-    wire        d_jump = d_to_x && d_is_jal;
+    wire        d_guess  = d_is_jal || (d_is_br && d_back);
+    wire        d_jump   = d_to_x && d_guess;
     // the next fetch address: both sums from the register, the fetched word picks one
     wire [31:0] f_pc2 = f_pc + 32'd2, f_pc4 = f_pc + 32'd4;
     wire [31:0] f_next = imem_rdata[1:0] == 2'b11 ? f_pc4 : f_pc2;
@@ -587,7 +596,7 @@ module rv_pipe #(
                 x_c <= fi_c;
                 x_imm <= fi_c ? immc : imm32;
                 x_raw <= fi_c ? {16'd0, c} : fr;
-                x_jd <= d_is_jal;
+                x_jd <= d_guess;
             end else if (x_leaves) begin
                 x_valid <= 1'b0;
             end

@@ -228,6 +228,38 @@ fn branches_and_jumps() {
     assert_eq!(run.hart.x[S1 as usize], link_at + 16);
 }
 
+/// Backward branches, which the pipelined core guesses taken in decode: loops that close with
+/// a 32-bit branch, a compressed one and one at a halfword address, their exits (the guess
+/// is wrong), a backward branch that is never taken, and an interrupt-free count of each.
+#[test]
+fn backward_branches() {
+    let pair = |a: u16, b: u16| u32::from(a) | u32::from(b) << 16;
+    let mut p = Prog::new();
+    // a0 counts down from 5 with BNE back over two instructions: a1 = 5 passes
+    p.li(A0, 5).li(A1, 0);
+    p.i(isa::addi(A1, A1, 1))
+        .i(isa::addi(A0, A0, -1))
+        .i(isa::bne(A0, 0, -8));
+    // C.BNEZ back: a2 = 3 passes (the loop body is one word: C.ADDI a2, C.ADDI a3)
+    p.li(A3, 3).li(A2, 0);
+    p.i(pair(c::addi(A2, 1), c::addi(A3, -1)));
+    p.i(pair(c::bnez(A3, -4), c::NOP));
+    // a 32-bit BLT at a halfword address, back to a C.ADDI: a4 counts to 4
+    p.li(A4, 0).li(A5, 4);
+    p.i(pair(c::NOP, c::addi(A4, 1)));
+    let blt = isa::blt(A4, A5, -4);
+    p.i(pair(c::NOP, blt as u16));
+    p.i(blt >> 16 | u32::from(c::NOP) << 16);
+    // never taken: BEQ back with unequal operands, then C.BEQZ back on a nonzero register
+    p.li(T2, 1);
+    p.i(isa::beq(T2, 0, -4)).i(pair(c::beqz(A1, -2), c::NOP));
+    p.i(isa::addi(16, 0, 7));
+    p.exit_pass();
+    let (run, _) = run_pass(&p);
+    let x = run.hart.x;
+    assert_eq!([x[11], x[12], x[14], x[16]], [5, 3, 4, 7]);
+}
+
 /// Installs a handler that records mcause, mepc and mtval to OUT.. and returns past the
 /// trapping instruction; returns the program with `mtvec` set.
 fn with_trap_recorder() -> Prog {
