@@ -589,6 +589,16 @@ fn clean_command(program: &str, debian: bool) -> Command {
 mod tests {
     use super::*;
 
+    /// Zcb only where the cores have it: the soft cores and their model, not QEMU 7.2.
+    #[test]
+    fn zcb_only_for_the_soft_cores() {
+        assert_eq!(board_features("softcore"), ["+zcb"]);
+        assert!(board_features("qemu_virt").is_empty());
+        for b in BOARDS {
+            assert!(!board_features(b).iter().any(|f| EXTRA_FEATURES.contains(f)));
+        }
+    }
+
     #[test]
     fn extra_features_join_the_target_features_once() {
         let x = ["+relax", "+save-restore"];
