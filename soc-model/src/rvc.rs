@@ -14,11 +14,21 @@ pub fn is_compressed(fetched: u32) -> bool {
     fetched & 3 != 3
 }
 
+/// The 32-bit form of a retirement record's instruction (`rvfi_insn`: a compressed one is its
+/// 16 bits, zero-extended); a reserved 16-bit encoding is returned as it is.
+pub fn as_32bit(insn: u32) -> u32 {
+    if is_compressed(insn) {
+        expand(insn as u16).unwrap_or(insn)
+    } else {
+        insn
+    }
+}
+
 /// The 32-bit instruction that the compressed instruction `c` stands for, or `None` for an
 /// encoding that is reserved or belongs to an extension the core lacks (F, D, Zbb, RV64/128
-/// forms, shift amounts of 32 and more): those raise an illegal-instruction exception. HINTs (writes
-/// to x0, C.NOP with an immediate, zero shift amounts) are legal and run as the instruction
-/// they expand to.
+/// forms, shift amounts of 32 and more): those raise an illegal-instruction exception. HINTs
+/// (writes to x0, C.NOP with an immediate, zero shift amounts) are legal and run as the
+/// instruction they expand to.
 pub fn expand(c: u16) -> Option<u32> {
     let c = u32::from(c);
     let bit = |n: u32| (c >> n) & 1;

@@ -20,8 +20,8 @@
 //! through the restored `ra` to the function's caller, and leave `a0`/`a1` (the return value)
 //! alone.
 //!
-//! Linked only when called: the save and the restore routines are a section each, and `--gc-sections` drops it from
-//! a build without the feature.
+//! Linked only when called: the save and the restore routines are a section each, and
+//! `--gc-sections` drops them from a build without the feature.
 
 macro_rules! routines {
     () => {
@@ -32,19 +32,9 @@ macro_rules! routines {
     .globl __riscv_save_4, __riscv_save_5, __riscv_save_6, __riscv_save_7
     .globl __riscv_save_8, __riscv_save_9, __riscv_save_10, __riscv_save_11
     .globl __riscv_save_12
-    .type __riscv_save_0, @function
-    .type __riscv_save_1, @function
-    .type __riscv_save_2, @function
-    .type __riscv_save_3, @function
-    .type __riscv_save_4, @function
-    .type __riscv_save_5, @function
-    .type __riscv_save_6, @function
-    .type __riscv_save_7, @function
-    .type __riscv_save_8, @function
-    .type __riscv_save_9, @function
-    .type __riscv_save_10, @function
-    .type __riscv_save_11, @function
-    .type __riscv_save_12, @function
+    .irp n, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12
+    .type __riscv_save_\n, @function
+    .endr
 __riscv_save_12:
     addi sp, sp, -64
     sw ra, 60(sp)
@@ -80,10 +70,9 @@ __riscv_save_8:
     sw s9, 4(sp)
     sw s10, 0(sp)
     jr t0
-    .size __riscv_save_11, . - __riscv_save_11
-    .size __riscv_save_10, . - __riscv_save_10
-    .size __riscv_save_9, . - __riscv_save_9
-    .size __riscv_save_8, . - __riscv_save_8
+    .irp n, 11, 10, 9, 8
+    .size __riscv_save_\n, . - __riscv_save_\n
+    .endr
 __riscv_save_7:
 __riscv_save_6:
 __riscv_save_5:
@@ -98,10 +87,9 @@ __riscv_save_4:
     sw s5, 4(sp)
     sw s6, 0(sp)
     jr t0
-    .size __riscv_save_7, . - __riscv_save_7
-    .size __riscv_save_6, . - __riscv_save_6
-    .size __riscv_save_5, . - __riscv_save_5
-    .size __riscv_save_4, . - __riscv_save_4
+    .irp n, 7, 6, 5, 4
+    .size __riscv_save_\n, . - __riscv_save_\n
+    .endr
 __riscv_save_3:
 __riscv_save_2:
 __riscv_save_1:
@@ -112,10 +100,9 @@ __riscv_save_0:
     sw s1, 4(sp)
     sw s2, 0(sp)
     jr t0
-    .size __riscv_save_3, . - __riscv_save_3
-    .size __riscv_save_2, . - __riscv_save_2
-    .size __riscv_save_1, . - __riscv_save_1
-    .size __riscv_save_0, . - __riscv_save_0
+    .irp n, 3, 2, 1, 0
+    .size __riscv_save_\n, . - __riscv_save_\n
+    .endr
 
     .section .text.__riscv_restore, "ax", @progbits
     .p2align 1
@@ -123,19 +110,9 @@ __riscv_save_0:
     .globl __riscv_restore_4, __riscv_restore_5, __riscv_restore_6, __riscv_restore_7
     .globl __riscv_restore_8, __riscv_restore_9, __riscv_restore_10, __riscv_restore_11
     .globl __riscv_restore_12
-    .type __riscv_restore_0, @function
-    .type __riscv_restore_1, @function
-    .type __riscv_restore_2, @function
-    .type __riscv_restore_3, @function
-    .type __riscv_restore_4, @function
-    .type __riscv_restore_5, @function
-    .type __riscv_restore_6, @function
-    .type __riscv_restore_7, @function
-    .type __riscv_restore_8, @function
-    .type __riscv_restore_9, @function
-    .type __riscv_restore_10, @function
-    .type __riscv_restore_11, @function
-    .type __riscv_restore_12, @function
+    .irp n, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12
+    .type __riscv_restore_\n, @function
+    .endr
 __riscv_restore_12:
     lw s11, 12(sp)
     addi sp, sp, 16
@@ -167,19 +144,9 @@ __riscv_restore_0:
     lw ra, 12(sp)
     addi sp, sp, 16
     ret
-    .size __riscv_restore_0, . - __riscv_restore_0
-    .size __riscv_restore_1, . - __riscv_restore_1
-    .size __riscv_restore_2, . - __riscv_restore_2
-    .size __riscv_restore_3, . - __riscv_restore_3
-    .size __riscv_restore_4, . - __riscv_restore_4
-    .size __riscv_restore_5, . - __riscv_restore_5
-    .size __riscv_restore_6, . - __riscv_restore_6
-    .size __riscv_restore_7, . - __riscv_restore_7
-    .size __riscv_restore_8, . - __riscv_restore_8
-    .size __riscv_restore_9, . - __riscv_restore_9
-    .size __riscv_restore_10, . - __riscv_restore_10
-    .size __riscv_restore_11, . - __riscv_restore_11
-    .size __riscv_restore_12, . - __riscv_restore_12
+    .irp n, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12
+    .size __riscv_restore_\n, . - __riscv_restore_\n
+    .endr
 "#
     };
 }

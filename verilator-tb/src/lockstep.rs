@@ -193,11 +193,7 @@ impl Checker {
         // loop, which an interrupt does not break into: one that becomes pending meanwhile is
         // taken after the instruction. A compressed record holds its 16 bits: C.MUL (Zcb) is
         // the one compressed form that runs there.
-        let insn = if soc_model::rvc::is_compressed(rtl.insn) {
-            soc_model::rvc::expand(rtl.insn as u16).unwrap_or(rtl.insn)
-        } else {
-            rtl.insn
-        };
+        let insn = soc_model::rvc::as_32bit(rtl.insn);
         let in_loop = if self.iterative_mul {
             insn & 0xfe00_007f == 0x0200_0033
         } else {

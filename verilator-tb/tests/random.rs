@@ -48,14 +48,7 @@ fn sequential_multiplier_finishes_before_an_interrupt() {
     assert_eq!(run.exit, Some(Exit::Pass), "retired {}", run.retired);
     // the case itself: a product retired and an interrupt was taken right after it
     // (a compressed record holds its 16 bits: C.MUL is a product too)
-    let is_mul = |insn: u32| {
-        let insn = if soc_model::rvc::is_compressed(insn) {
-            soc_model::rvc::expand(insn as u16).unwrap_or(insn)
-        } else {
-            insn
-        };
-        insn & 0xfe00_407f == 0x0200_0033
-    };
+    let is_mul = |insn: u32| soc_model::rvc::as_32bit(insn) & 0xfe00_407f == 0x0200_0033;
     let after_product = run
         .records
         .windows(2)
