@@ -1,6 +1,7 @@
 // The core alone on an FPGA, for its area and clock figures: its buses end in flip-flops
 // clocked like the SoC's memories and devices (falling edge: the addresses are captured and
-// the read data leaves; rising edge: write data, strobes and read strobes are captured), fed
+// the read data leaves; rising edge: write data, strobes and read strobes are captured; the
+// pipelined core's data word leaves at the rising edge, from `dmem_next`), fed
 // by a 32-bit LFSR so nothing is constant, and folded into two output pins so nothing is
 // removed. The RVFI port is left open (removed).
 `default_nettype none
@@ -25,7 +26,8 @@ module core_top #(
     reg [3:0]  d_rmask_q, d_wstrb_q;
     reg        d_re_q, d_pre_q;
     reg [2:0]  irq;
-    wire [31:0] imem_addr, dmem_addr, dmem_wdata;
+    wire [31:0] imem_addr, dmem_addr, dmem_wdata, dmem_next;
+    reg  [31:0] d_next_q, d_data_e;
     wire [3:0]  dmem_rmask, dmem_wstrb;
     wire        dmem_re, dmem_rd_pre;
     wire [13:0] st_word;
@@ -41,6 +43,8 @@ module core_top #(
     end
     // the write port, read strobes (devices act on them) and the write buffer: rising edge
     always @(posedge clk) begin
+        d_next_q <= dmem_next;
+        d_data_e <= {lfsr[7:0], lfsr[31:8]} ^ d_next_q;
         irq <= lfsr[31:29];
         d_wdata_q <= dmem_wdata ^ st_data;
         d_rmask_q <= dmem_rmask ^ st_mask;
@@ -54,8 +58,9 @@ module core_top #(
             rv_pipe #(.FETCH_AW(14), .MUL_SEQ(MUL_SEQ)) core (
                 .clk(clk), .rst(rst),
                 .imem_addr(imem_addr), .imem_rdata(i_data),
-                .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
-                .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(d_data),
+                .dmem_addr(dmem_addr), .dmem_next(dmem_next), .dmem_re(dmem_re),
+                .dmem_rmask(dmem_rmask),
+                .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(d_data_e),
                 .dmem_rd_pre(dmem_rd_pre),
                 .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
                 .irq_software(irq[0]), .irq_timer(irq[1]), .irq_external(irq[2]),
@@ -66,6 +71,7 @@ module core_top #(
                 .rvfi_mem_wdata(), .rvfi_ext_mip(), .rvfi_ext_intr_mip()
             );
         end else begin : g_core
+            assign dmem_next = dmem_addr;
             rv_core #(.FETCH_AW(14), .MUL_SEQ(MUL_SEQ)) core (
                 .clk(clk), .rst(rst),
                 .imem_addr(imem_addr), .imem_rdata(i_data),

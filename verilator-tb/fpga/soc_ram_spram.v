@@ -20,12 +20,14 @@
 `default_nettype none
 
 module soc_ram #(
-    parameter integer AW = 14          // 16K words: fixed by the four SPRAMs
+    parameter integer AW = 14,         // 16K words: fixed by the four SPRAMs
+    parameter integer EARLY = 0        // must be 0: rv_core's timing only (see rtl/soc_ram.v)
 ) (
     input  wire          clk,
     input  wire [AW:0]   i_half,
     output wire [31:0]   i_rdata,
     input  wire [AW-1:0] d_word,
+    input  wire [AW-1:0] d_next,       // unused (EARLY)
     input  wire          d_pre,
     input  wire [AW-1:0] st_word,      // the core's last store: the write buffer's contents
     input  wire [31:0]   st_data,

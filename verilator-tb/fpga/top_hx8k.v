@@ -3,7 +3,7 @@
 // nominal 14.7456 MHz). RAM: 4 KiB of block RAM (each halfword bank twice, for the fetch and
 // the data port); frame window 1 KiB. No DSP blocks: the core multiplies in its divider's
 // loop (MUL_SEQ, 34 cycles a product) instead of on a 32x32 multiplier of about 2 800 LUT4.
-// The core is the pipelined one (PIPE, rtl/rv_pipe.v): the SoC reaches about 40 MHz.
+// The core is the pipelined one (PIPE, rtl/rv_pipe.v): the SoC reaches about 45 MHz.
 `default_nettype none
 
 module top_hx8k #(

@@ -3,26 +3,32 @@
 // Four stages, one instruction each:
 //   F  fetch: `f_pc` addresses the instruction memory (the SoC's RAM answers with the 32 bits
 //      at any halfword address in the same cycle); the word is captured into D.
-//   D  decode: a compressed instruction is expanded, the immediate decoded, and the register
-//      file (block RAM, synchronous read) read at the clock edge that ends the stage.
+//   D  decode: a compressed instruction is expanded, the immediate and the instruction's
+//      class decoded (X takes the flags registered, `xd`), and the register file (block RAM,
+//      synchronous read) read at the clock edge that ends the stage; whether X will forward
+//      M's result is decided here too (`fwd_a`, `fwd_b`).
 //   X  execute: operands forwarded from M or from the word written at the edge that began the
 //      cycle; ALU, branches and jumps (resolved here: the instructions fetched behind a taken
 //      one are discarded; a JAL's target, and a backward branch's, were already fetched from
 //      D, see `d_jump`), CSRs (all in flip-flops), traps and interrupts (taken here, between
 //      instructions), the multiplier, the iterative divider (the pipeline waits), load and
 //      store addresses.
-//   M  memory and write-back: the data bus is driven from M's registers; a loaded word is
-//      aligned and written back at the edge that ends the stage, with every other result; an
-//      atomic read-modify-write takes two cycles here. Every instruction retires in M, in
-//      order, with its RVFI record (registered: valid in the cycle after).
+//   M  memory and write-back: the data bus is driven from M's registers; the SoC's memories
+//      read the word at the edge that begins the stage, from X's address (`dmem_next`), so
+//      the word is there early in the cycle; a loaded word is aligned and written back at the
+//      edge that ends the stage, with every other result; an atomic read-modify-write takes
+//      two cycles here (the second uses the word the first loaded). Every instruction retires
+//      in M, in order, with its RVFI record (registered: valid in the cycle after).
 // An instruction in X that reads the word an instruction in M loads waits one cycle. A store
 // into an instruction already fetched (F, D or X) discards those and fetches them again, so a
 // program sees its own stores as the golden model does. The interrupt lines are registered
 // at the input (an interrupt is seen one cycle later); the CSRs, mcycle and minstret are
 // flip-flops (`rv_core` keeps the wide ones in its register file's block RAM).
 //
-// Same ports and SoC timing as `rv_core` (the SoC's memories read on the falling edge);
-// its cycles differ from the cycle-accurate model's, its retirements do not.
+// Same ports as `rv_core` and one more, `dmem_next`: the SoC's data memories read at the
+// rising edge from it (`rv_core`'s read on the falling edge from `dmem_addr`; the fetch port
+// reads on the falling edge for both). Its cycles differ from the cycle-accurate model's, its
+// retirements do not.
 `default_nettype none
 
 module rv_pipe #(
@@ -39,6 +45,7 @@ module rv_pipe #(
     input  wire [31:0] imem_rdata,
 
     output wire [31:0] dmem_addr,
+    output wire [31:0] dmem_next,     // the word the data port accesses in the next cycle
     output wire        dmem_re,
     output wire [3:0]  dmem_rmask,
     output wire [3:0]  dmem_wstrb,
@@ -217,7 +224,71 @@ module rv_pipe #(
         ({32{f_zn}}  & {{24{c[2]}}, 8'hFF});
     wire [31:0] fi = fi_c ? cx : fr;
 
-    // ================================================================ X: decode
+    // ================================================================ D: decode
+    // The instruction entering X is decoded here, and X takes the flags with it (`xd`): X's
+    // cycle starts from registers, not from the instruction's bits.
+    wire [6:0]  dop = fi[6:0];
+    wire [2:0]  df3 = fi[14:12];
+    wire [6:0]  df7 = fi[31:25];
+    wire [4:0]  df5 = fi[31:27];
+    wire d_lui     = dop == 7'b0110111;
+    wire d_auipc   = dop == 7'b0010111;
+    wire d_jal     = dop == 7'b1101111;
+    wire d_jalr    = dop == 7'b1100111 && df3 == 3'd0;
+    wire d_branch  = dop == 7'b1100011 && df3[2:1] != 2'b01;
+    wire d_load    = dop == 7'b0000011 && df3 != 3'd3 && df3[2:1] != 2'b11;
+    wire d_store   = dop == 7'b0100011 && df3[2] == 1'b0 && df3 != 3'd3;
+    wire d_opimm   = dop == 7'b0010011 &&
+                     (df3 == 3'd1 ? df7 == 7'd0 :
+                      df3 == 3'd5 ? (df7 == 7'd0 || df7 == 7'h20) : 1'b1);
+    wire d_op      = dop == 7'b0110011 &&
+                     (df7 == 7'd0 || (df7 == 7'h20 && (df3 == 3'd0 || df3 == 3'd5)));
+    wire d_muldiv  = dop == 7'b0110011 && df7 == 7'd1;
+    wire d_fence   = dop == 7'b0001111 && df3 == 3'd0;
+    wire d_ecall   = fi == 32'h0000_0073;
+    wire d_ebreak  = fi == 32'h0010_0073;
+    wire d_mret    = fi == 32'h3020_0073;
+    wire d_wfi     = fi == 32'h1050_0073;
+    wire d_csr     = dop == 7'b1110011 && df3 != 3'd0 && df3 != 3'd4;
+    wire d_amo_ok  = df5 == 5'b00010 ? fi[24:20] == 5'd0 :
+                     (df5 == 5'b00011 || df5 == 5'b00001 || df5 == 5'b00000 ||
+                      df5 == 5'b00100 || df5 == 5'b01100 || df5 == 5'b01000 ||
+                      df5 == 5'b10000 || df5 == 5'b10100 || df5 == 5'b11000 ||
+                      df5 == 5'b11100);
+    wire d_amo_any = dop == 7'b0101111 && df3 == 3'd2 && d_amo_ok;
+    wire d_lr      = d_amo_any && df5 == 5'b00010;
+    wire d_sc      = d_amo_any && df5 == 5'b00011;
+    wire d_amo     = d_amo_any && !d_lr && !d_sc;
+    wire d_div     = d_muldiv && df3[2];
+    wire d_iter    = d_muldiv && (df3[2] || MUL_SEQ != 0);
+    wire d_legal   = d_lui | d_auipc | d_jal | d_jalr | d_branch | d_load | d_store | d_opimm |
+                     d_op | d_muldiv | d_fence | d_ecall | d_ebreak | d_mret | d_wfi | d_csr |
+                     d_amo_any;
+    // the CSRs that exist (X reads them: `csr_rdata`)
+    wire [11:0] d_csr_addr = fi[31:20];
+    reg         d_csr_exists;
+    always @(*) begin
+        case (d_csr_addr)
+            12'h300, 12'h301, 12'h304, 12'h305, 12'h310, 12'h340, 12'h341, 12'h342, 12'h343,
+            12'h344, 12'hb00, 12'hc00, 12'hb80, 12'hc80, 12'hb02, 12'hc02, 12'hb82, 12'hc82,
+            12'hf11, 12'hf12, 12'hf13, 12'hf14, 12'hf15: d_csr_exists = 1'b1;
+            default: d_csr_exists = 1'b0;
+        endcase
+    end
+    wire d_csr_writes = df3[1:0] == 2'b01 || fi[19:15] != 5'd0;
+    wire d_illegal = !d_legal || fi[1:0] != 2'b11 ||
+                     (d_csr && (!d_csr_exists || (d_csr_addr[11:10] == 2'b11 && d_csr_writes)));
+    wire d_shift   = (d_opimm | d_op) && df3[1:0] == 2'b01;
+    wire d_writes_rd = d_lui | d_auipc | d_jal | d_jalr | d_load | d_opimm | d_op | d_muldiv |
+                       d_csr | d_amo_any;
+    wire d_csr_cnt = d_csr_addr[11] && d_csr_addr[10:8] != 3'b111;  // mcycle(h), minstret(h)
+    reg  [25:0] xd;
+    wire [25:0] d_dec = {d_csr_cnt, d_csr_writes, d_writes_rd, d_shift, d_illegal, d_iter, d_div,
+                        d_amo, d_sc, d_lr, d_amo_any, d_csr, d_wfi, d_mret, d_ebreak, d_ecall,
+                        d_muldiv, d_op, d_opimm, d_store, d_load, d_branch, d_jalr, d_jal,
+                        d_auipc, d_lui};
+
+    // ================================================================ X: decode (registered)
     wire [31:0] insn   = x_ir;
     wire [6:0]  opcode = insn[6:0];
     wire [4:0]  rd     = insn[11:7];
@@ -226,46 +297,38 @@ module rv_pipe #(
     wire [2:0]  f3     = insn[14:12];
     wire [6:0]  f7     = insn[31:25];
     wire [4:0]  f5     = insn[31:27];
-
-    wire is_lui    = opcode == 7'b0110111;
-    wire is_auipc  = opcode == 7'b0010111;
-    wire is_jal    = opcode == 7'b1101111;
-    wire is_jalr   = opcode == 7'b1100111 && f3 == 3'd0;
-    wire is_branch = opcode == 7'b1100011 && f3[2:1] != 2'b01;
-    wire is_load   = opcode == 7'b0000011 && f3 != 3'd3 && f3[2:1] != 2'b11;
-    wire is_store  = opcode == 7'b0100011 && f3[2] == 1'b0 && f3 != 3'd3;
-    wire is_opimm  = opcode == 7'b0010011 &&
-                     (f3 == 3'd1 ? f7 == 7'd0 :
-                      f3 == 3'd5 ? (f7 == 7'd0 || f7 == 7'h20) : 1'b1);
-    wire is_op     = opcode == 7'b0110011 &&
-                     (f7 == 7'd0 || (f7 == 7'h20 && (f3 == 3'd0 || f3 == 3'd5)));
-    wire is_muldiv = opcode == 7'b0110011 && f7 == 7'd1;
-    wire is_fence  = opcode == 7'b0001111 && f3 == 3'd0;
-    wire is_ecall  = insn == 32'h0000_0073;
-    wire is_ebreak = insn == 32'h0010_0073;
-    wire is_mret   = insn == 32'h3020_0073;
-    wire is_wfi    = insn == 32'h1050_0073;
-    wire is_csr    = opcode == 7'b1110011 && f3 != 3'd0 && f3 != 3'd4;
-    wire amo_op_ok = f5 == 5'b00010 ? rs2 == 5'd0 :
-                     (f5 == 5'b00011 || f5 == 5'b00001 || f5 == 5'b00000 || f5 == 5'b00100 ||
-                      f5 == 5'b01100 || f5 == 5'b01000 || f5 == 5'b10000 || f5 == 5'b10100 ||
-                      f5 == 5'b11000 || f5 == 5'b11100);
-    wire is_amo_any = opcode == 7'b0101111 && f3 == 3'd2 && amo_op_ok;
-    wire is_lr     = is_amo_any && f5 == 5'b00010;
-    wire is_sc     = is_amo_any && f5 == 5'b00011;
-    wire is_amo    = is_amo_any && !is_lr && !is_sc;
-    wire is_div    = is_muldiv && f3[2];
-    wire is_iter   = is_muldiv && (f3[2] || MUL_SEQ != 0);
-    wire legal = is_lui | is_auipc | is_jal | is_jalr | is_branch | is_load | is_store |
-                 is_opimm | is_op | is_muldiv | is_fence | is_ecall | is_ebreak | is_mret |
-                 is_wfi | is_csr | is_amo_any;
+    wire is_lui     = xd[0];
+    wire is_auipc   = xd[1];
+    wire is_jal     = xd[2];
+    wire is_jalr    = xd[3];
+    wire is_branch  = xd[4];
+    wire is_load    = xd[5];
+    wire is_store   = xd[6];
+    wire is_opimm   = xd[7];
+    wire is_op      = xd[8];
+    wire is_muldiv  = xd[9];
+    wire is_ecall   = xd[10];
+    wire is_ebreak  = xd[11];
+    wire is_mret    = xd[12];
+    wire is_wfi     = xd[13];
+    wire is_csr     = xd[14];
+    wire is_amo_any = xd[15];
+    wire is_lr      = xd[16];
+    wire is_sc      = xd[17];
+    wire is_amo     = xd[18];
+    wire is_div     = xd[19];
+    wire is_iter    = xd[20];
+    wire x_illegal  = xd[21];
+    wire is_shift   = xd[22];
+    wire writes_rd  = xd[23];
+    wire csr_writes = xd[24];
+    wire csr_cnt    = xd[25];
 
     // ================================================================ X: operands
     // the instruction in M writes rd at the end of this cycle: forwarded (a loaded word is
-    // not there yet: the instruction waits)
-    wire m_writes = m_valid && !m_trap && m_rd != 5'd0;
-    wire fwd_a = m_writes && m_rd == rs1;
-    wire fwd_b = m_writes && m_rd == rs2;
+    // not there yet: the instruction waits). Whether M's rd is rs1 or rs2 was worked out at
+    // the edge that began the cycle (`fwd_a`, `fwd_b`, below).
+    reg  fwd_a, fwd_b;
     wire [31:0] rs1v = fwd_a ? m_result : byp_a ? byp_val : rf_a;
     wire [31:0] rs2v = fwd_b ? m_result : byp_b ? byp_val : rf_b;
     wire load_use = (fwd_a || fwd_b) && m_load;
@@ -285,12 +348,16 @@ module rv_pipe #(
     wire [31:0] add_b  = (op_amo ? 32'd0 : alu_b) ^ {32{do_sub}};
     wire [31:0] sum    = add_a + add_b + {31'd0, do_sub};
 
-    wire [31:0] cmp_b      = is_branch ? rs2v : alu_b;
-    wire        cmp_signed = is_branch ? !f3[1] : !f3[0];
-    wire [32:0] cmp_diff   = {cmp_signed & rs1v[31], rs1v} - {cmp_signed & cmp_b[31], cmp_b};
+    // SLT(I)(U) on rs1 and the ALU's second operand; branches on a comparator of their own,
+    // with no operand choice in front of it (their outcome ends X's longest paths)
+    wire        cmp_signed = !f3[0];
+    wire [32:0] cmp_diff   = {cmp_signed & rs1v[31], rs1v} - {cmp_signed & alu_b[31], alu_b};
     wire        lt         = cmp_diff[32];
-    wire        eq         = rs1v == cmp_b;
-    wire        br_taken   = f3[2] ? lt ^ f3[0] : eq ^ f3[0];
+    wire        br_signed  = !f3[1];
+    wire [32:0] br_diff    = {br_signed & rs1v[31], rs1v} - {br_signed & rs2v[31], rs2v};
+    wire        br_lt      = br_diff[32];
+    wire        br_eq      = rs1v == rs2v;
+    wire        br_taken   = f3[2] ? br_lt ^ f3[0] : br_eq ^ f3[0];
     wire [4:0]  shamt      = alu_b[4:0];
     reg  [31:0] logic_out;
     always @(*) begin
@@ -303,7 +370,6 @@ module rv_pipe #(
     end
 
     // multiply, divide, shifts (as rv_core: the shifts on the multiplier unless MUL_SEQ)
-    wire        is_shift = (is_opimm | is_op) && f3[1:0] == 2'b01;
     wire        sh_zero  = shamt == 5'd0;
     wire        sign_a   = is_muldiv ? (f3[2] ? !f3[0] : f3[1] ^ f3[0]) :
                            is_shift && f3[2] && f7[5] && !sh_zero;
@@ -335,14 +401,18 @@ module rv_pipe #(
 
     // memory access (address and checks in X)
     wire [31:0] ls_addr = sum;
-    wire        ls_misaligned = is_amo_any ? ls_addr[1:0] != 2'd0 :
-                                f3[1:0] == 2'd1 ? ls_addr[0] :
-                                f3[1:0] == 2'd2 ? ls_addr[1:0] != 2'd0 : 1'b0;
-    wire [3:0]  st_mask = f3[1:0] == 2'd0 ? (4'b0001 << ls_addr[1:0]) :
-                          f3[1:0] == 2'd1 ? (4'b0011 << ls_addr[1:0]) : 4'b1111;
+    // the alignment from the address's two low bits, summed apart from the adder (it decides
+    // whether the access traps, which the whole pipeline waits on)
+    wire [1:0]  ls_low = rs1v[1:0] + (is_amo_any ? 2'd0 : x_imm[1:0]);
+    wire        ls_misaligned = is_amo_any ? ls_low != 2'd0 :
+                                f3[1:0] == 2'd1 ? ls_low[0] :
+                                f3[1:0] == 2'd2 ? ls_low != 2'd0 : 1'b0;
+    wire [3:0]  st_mask = f3[1:0] == 2'd0 ? (4'b0001 << ls_low) :
+                          f3[1:0] == 2'd1 ? (4'b0011 << ls_low) : 4'b1111;
     wire [31:0] st_data = f3[1:0] == 2'd0 ? {4{rs2v[7:0]}} :
                           f3[1:0] == 2'd1 ? {2{rs2v[15:0]}} : rs2v;
-    wire        sc_ok = res_valid && res_addr == ls_addr;
+    // SC's address is rs1 (an AMO adds nothing): compared without the adder
+    wire        sc_ok = res_valid && res_addr == rs1v;
 
     // ================================================================ X: CSRs
     wire [11:0] csr_addr = insn[31:20];
@@ -356,9 +426,7 @@ module rv_pipe #(
     wire        m_counts = m_valid && !m_trap && !(m_amo && !m_amo2);
     wire [63:0] instret_now = minstret + {63'd0, m_counts};
     reg  [31:0] csr_rdata;
-    reg         csr_exists;
     always @(*) begin
-        csr_exists = 1'b1;
         case (csr_addr)
             12'h300: csr_rdata = {19'd0, 2'b11, 3'd0, mstatus_mpie, 3'd0, mstatus_mie, 3'd0};
             12'h301: csr_rdata = 32'h4000_1105;
@@ -375,26 +443,20 @@ module rv_pipe #(
             12'hb02, 12'hc02: csr_rdata = instret_now[31:0];
             12'hb82, 12'hc82: csr_rdata = instret_now[63:32];
             12'hf11, 12'hf12, 12'hf13, 12'hf14, 12'hf15: csr_rdata = 32'd0;
-            default: begin
-                csr_rdata = 32'd0;
-                csr_exists = 1'b0;
-            end
+            default: csr_rdata = 32'd0;
         endcase
     end
-    wire        csr_writes = f3[1:0] == 2'b01 || rs1 != 5'd0;
     wire [31:0] csr_src    = f3[2] ? {27'd0, rs1} : rs1v;   // CSRR*I: the immediate
     wire        c_rw       = f3[1:0] == 2'b01, c_rc = f3[1:0] == 2'b11;
     wire [31:0] csr_wdata  = (csr_rdata & ~({32{c_rw}} | ({32{c_rc}} & csr_src))) |
                              (csr_src & ~{32{c_rc}});
-    wire        csr_illegal = !csr_exists || (csr_addr[11:10] == 2'b11 && csr_writes);
-    wire        csr_cnt    = csr_addr[11] && csr_addr[10:8] != 3'b111;  // mcycle(h), minstret(h)
 
     // ================================================================ X: control
     wire [31:0] pc_plus = x_pc + {29'd0, !x_c, x_c, 1'b0};
     wire jump = is_jal | is_jalr | (is_branch && br_taken);
     wire [31:0] next_pc = jump ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
 
-    wire exc_illegal = !legal || (is_csr && csr_illegal) || insn[1:0] != 2'b11;
+    wire exc_illegal = x_illegal;
     wire exc_load    = !exc_illegal && (is_load || is_lr) && ls_misaligned;
     wire exc_store   = !exc_illegal && (is_store || is_sc || is_amo) && ls_misaligned;
     wire exc_misal   = exc_load | exc_store;
@@ -410,10 +472,12 @@ module rv_pipe #(
     // are fetched again (X, D and F discarded, F restarts at the oldest).
     wire        st_now  = m_valid && m_wstrb != 4'd0 && m_addr[31:20] == FETCH_REGION;
     wire [FETCH_AW-1:0] st_word = m_addr[FETCH_AW+1:2];
+    // (an instruction at a halfword address may end in the next word: the word before the
+    // store's counts too)
+    wire [FETCH_AW-1:0] st_prev = st_word - {{(FETCH_AW-1){1'b0}}, 1'b1};
     function automatic hits(input [31:0] pc);
         hits = pc[31:20] == FETCH_REGION &&
-               (pc[FETCH_AW+1:2] == st_word ||
-                pc[FETCH_AW+1:2] + {{(FETCH_AW-1){1'b0}}, 1'b1} == st_word);
+               (pc[FETCH_AW+1:2] == st_word || pc[FETCH_AW+1:2] == st_prev);
     endfunction
     wire        smc = st_now && ((x_valid && hits(x_pc)) || (d_valid && hits(d_pc)) ||
                                  hits(f_pc));
@@ -449,8 +513,6 @@ module rv_pipe #(
         ({32{t_sum}} & sum) | ({32{t_link}} & pc_plus) | ({32{t_logic}} & logic_out) |
         ({32{t_mul | is_div}} & mul_out) | ({32{is_csr}} & csr_rdata) |
         {31'd0, is_sc && !sc_ok};
-    wire writes_rd = is_lui | is_auipc | is_jal | is_jalr | is_load | is_opimm | is_op |
-                     is_muldiv | is_csr | is_amo_any;
     wire [4:0] rd_eff = writes_rd ? rd : 5'd0;
     wire x_mem_rd = is_load | is_lr | is_amo;
     wire x_mem_wr = is_store | is_amo | (is_sc && sc_ok);
@@ -469,6 +531,7 @@ module rv_pipe #(
     wire d_to_x   = d_valid && x_leaves && !redirect;
     wire d_free   = !d_valid || d_to_x;
     wire f_to_d   = d_free && !redirect;
+    wire d_open   = !d_valid || x_leaves;     // D may take F's word (f_to_d unless redirect)
     // JAL, C.J and C.JAL, and conditional branches backwards (loops: guessed taken), send the
     // fetch to their target as they leave D, from the fetched bits (not the expansion) so the
     // sum starts early: the word fetched behind them is discarded, one cycle instead of the
@@ -494,10 +557,15 @@ module rv_pipe #(
     wire       x_stays = x_valid && !x_leaves;
     wire [4:0] port_a = x_stays ? rs1 : fi[19:15];
     wire [4:0] port_b = x_stays ? rs2 : fi[24:20];
+    // the register M writes in the next cycle: its AMO's again, or X's instruction's
+    wire       m_holds = m_valid && m_amo && !m_amo2;
+    wire [4:0] m_rd_next = m_holds ? m_rd : x_commit ? rd_eff : 5'd0;
 
     // ================================================================ M
+    // the word read at the edge that began the stage (an AMO's second cycle: the first's)
+    wire [31:0] m_rdata = m_amo2 ? m_loaded : dmem_rdata;
     wire [4:0]  ld_shift = {m_addr[1:0], 3'd0};
-    wire [31:0] ld_shifted = dmem_rdata >> ld_shift;
+    wire [31:0] ld_shifted = m_rdata >> ld_shift;
     reg  [31:0] load_out;
     always @(*) begin
         case (m_f3)
@@ -505,7 +573,7 @@ module rv_pipe #(
             3'd1: load_out = {{16{ld_shifted[15]}}, ld_shifted[15:0]};
             3'd4: load_out = {24'd0, ld_shifted[7:0]};
             3'd5: load_out = {16'd0, ld_shifted[15:0]};
-            default: load_out = dmem_rdata;
+            default: load_out = m_rdata;
         endcase
     end
     // the AMO's new word, from the word loaded in its first cycle and rs2
@@ -522,6 +590,7 @@ module rv_pipe #(
     wire m_act   = m_valid && !m_trap && !rst;
     wire m_done  = m_valid && !(m_amo && !m_amo2);   // retires at the end of this cycle
     assign dmem_addr   = {m_addr[31:2], 2'b00};
+    assign dmem_next   = {ls_addr[31:2], 2'b00};
     assign dmem_re     = m_act && m_rd_mem && !(m_amo && m_amo2);
     assign dmem_rd_pre = m_valid && m_rd_mem && !(m_amo && m_amo2);
     assign dmem_rmask  = m_act ? m_rmask : 4'd0;
@@ -543,6 +612,8 @@ module rv_pipe #(
         rf_b <= regs[port_b];
         byp_a <= wb_en && m_rd == port_a;
         byp_b <= wb_en && m_rd == port_b;
+        fwd_a <= !rst && m_rd_next != 5'd0 && m_rd_next == port_a;
+        fwd_b <= !rst && m_rd_next != 5'd0 && m_rd_next == port_b;
         byp_val <= wb_val;
     end
 
@@ -580,25 +651,25 @@ module rv_pipe #(
             if (redirect) f_pc <= redirect_pc;
             else if (d_jump) f_pc <= d_target;
             else if (f_to_d) f_pc <= f_next;
-            if (f_to_d && !d_jump) begin
-                d_valid <= 1'b1;
+            // D and X take their registers whenever they may take an instruction, without
+            // waiting for X's branch outcome (a redirect only clears the valid bits): the
+            // enables of these wide registers stay off the execute stage's longest path.
+            if (d_open) begin
                 d_pc <= f_pc;
                 d_word <= imem_rdata;
-            end else if (redirect || d_to_x) begin
-                d_valid <= 1'b0;
             end
+            d_valid <= !redirect && !(d_open && d_valid && d_guess);
 
             // ---------------------------------------------------- X
-            if (d_to_x) begin
-                x_valid <= 1'b1;
+            if (x_leaves) begin
                 x_pc <= d_pc;
                 x_ir <= fi;
                 x_c <= fi_c;
                 x_imm <= fi_c ? immc : imm32;
                 x_raw <= fi_c ? {16'd0, c} : fr;
                 x_jd <= d_guess;
-            end else if (x_leaves) begin
-                x_valid <= 1'b0;
+                xd <= d_dec;
+                x_valid <= d_to_x;
             end
             // the divider runs while the instruction waits in X (not while it waits for M)
             if (smc || !x_valid || irq_take) begin
@@ -739,7 +810,7 @@ module rv_pipe #(
                 rvfi_mem_addr <= !m_trap && (m_rd_mem || m_wstrb != 4'd0) ? dmem_addr : 32'd0;
                 rvfi_mem_rmask <= m_trap ? 4'd0 : m_rmask;
                 rvfi_mem_wmask <= m_trap ? 4'd0 : m_wstrb;
-                rvfi_mem_rdata <= !m_trap && m_rd_mem ? dmem_rdata : 32'd0;
+                rvfi_mem_rdata <= !m_trap && m_rd_mem ? m_rdata : 32'd0;
                 rvfi_mem_wdata <= !m_trap && m_wstrb != 4'd0 ? dmem_wdata : 32'd0;
             end
         end

@@ -84,6 +84,7 @@ module soc #(
 );
     wire [31:0] imem_addr, imem_rdata;
     wire [31:0] dmem_addr, dmem_wdata;
+    wire [31:0] dmem_next;      // rv_pipe: the next cycle's data address (early reads)
     reg  [31:0] dmem_rdata;
     wire        dmem_re, dmem_rd_pre;
     wire [RAM_AW-1:0] st_word;
@@ -102,7 +103,8 @@ module soc #(
             rv_pipe #(.FETCH_AW(RAM_AW), .MUL_SEQ(MUL_SEQ)) core (
                 .clk(clk), .rst(rst),
                 .imem_addr(imem_addr), .imem_rdata(imem_rdata),
-                .dmem_addr(dmem_addr), .dmem_re(dmem_re), .dmem_rmask(dmem_rmask),
+                .dmem_addr(dmem_addr), .dmem_next(dmem_next), .dmem_re(dmem_re),
+                .dmem_rmask(dmem_rmask),
                 .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(dmem_rdata),
                 .dmem_rd_pre(dmem_rd_pre),
                 .last_st_word(st_word), .last_st_data(st_data), .last_st_mask(st_mask),
@@ -118,6 +120,7 @@ module soc #(
                 .rvfi_ext_intr_mip(rvfi_ext_intr_mip)
             );
         end else begin : g_core
+            assign dmem_next = dmem_addr;
             rv_core #(.FETCH_AW(RAM_AW), .MUL_SEQ(MUL_SEQ)) core (
                 .clk(clk), .rst(rst),
                 .imem_addr(imem_addr), .imem_rdata(imem_rdata),
@@ -141,8 +144,9 @@ module soc #(
 
     // ------------------------------------------------------------------ RAM
     // `soc_ram` (rtl/soc_ram.v): two halfword banks, so the fetch port reads the 32 bits at any
-    // halfword address in one cycle; both read ports are registered on the falling edge (see
-    // there). The RAM is 2^RAM_AW words, repeated over the 1 MiB region.
+    // halfword address in one cycle; both read ports are registered on the falling edge, or
+    // with the pipelined core the data port on the rising edge from `dmem_next` (see there).
+    // The RAM is 2^RAM_AW words, repeated over the 1 MiB region.
     wire imem_in_ram = imem_addr[31:20] == 12'h800;
     reg  imem_in_ram_q;
     wire [31:0] ram_idata;
@@ -159,10 +163,10 @@ module soc #(
     wire sel_vis   = VISION != 0 && dmem_addr[31:16] == 16'h8113;
 
     wire [31:0] ram_rdata;
-    soc_ram #(.AW(RAM_AW)) ram (
+    soc_ram #(.AW(RAM_AW), .EARLY(PIPE)) ram (
         .clk(clk),
         .i_half(imem_addr[RAM_AW+1:1]), .i_rdata(ram_idata),
-        .d_word(dmem_addr[RAM_AW+1:2]), .d_pre(dmem_rd_pre),
+        .d_word(dmem_addr[RAM_AW+1:2]), .d_next(dmem_next[RAM_AW+1:2]), .d_pre(dmem_rd_pre),
         .st_word(st_word), .st_data(st_data), .st_mask(st_mask),
         .d_we(sel_ram && !rst ? dmem_wstrb : 4'd0),
         .d_wdata(dmem_wdata), .d_rdata(ram_rdata),
@@ -174,15 +178,18 @@ module soc #(
     // into it and the harness writes it between clock cycles through the model's public view
     // of `fmem`, so it is read combinationally: a harness write is seen by loads from the next
     // cycle on. On an FPGA (FG_PORT = 1) the frame-grabber port `fg_*` writes it, core stores
-    // are ignored, and the read is registered on the falling edge like the RAM's (block RAM).
+    // are ignored, and the read is registered like the RAM's data port (block RAM): on the
+    // falling edge, or with the pipelined core on the rising edge from `dmem_next`.
     integer k;
     reg [31:0] fmem [0:FMEM_WORDS-1] /*verilator public_flat*/;
     initial for (k = 0; k < FMEM_WORDS; k = k + 1) fmem[k] = 32'd0;
 
     wire [FMEM_AW-1:0] fw = dmem_addr[FMEM_AW+1:2];
+    reg  [FMEM_AW-1:0] fw_next_q;
     reg  [31:0] fmem_q;
     always @(negedge clk) fmem_q <= fmem[fw];
-    wire [31:0] fmem_rdata = FG_PORT != 0 ? fmem_q : fmem[fw];
+    always @(posedge clk) fw_next_q <= dmem_next[FMEM_AW+1:2];
+    wire [31:0] fmem_rdata = FG_PORT == 0 ? fmem[fw] : PIPE != 0 ? fmem[fw_next_q] : fmem_q;
     always @(posedge clk) begin
         if (FG_PORT != 0) begin
             if (fg_we[0]) fmem[fg_addr][7:0] <= fg_wdata[7:0];
