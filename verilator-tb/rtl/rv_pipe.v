@@ -457,8 +457,10 @@ module rv_pipe #(
     wire [31:0] next_pc = jump ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
 
     wire exc_illegal = x_illegal;
-    wire exc_load    = !exc_illegal && (is_load || is_lr) && ls_misaligned;
-    wire exc_store   = !exc_illegal && (is_store || is_sc || is_amo) && ls_misaligned;
+    // (not while the address waits for a loaded word: the forwarded operand is not it yet)
+    wire exc_load    = !exc_illegal && (is_load || is_lr) && ls_misaligned && !load_use;
+    wire exc_store   = !exc_illegal && (is_store || is_sc || is_amo) && ls_misaligned &&
+                       !load_use;
     wire exc_misal   = exc_load | exc_store;
     wire exc = exc_illegal | exc_misal | is_ecall | is_ebreak;
     wire [3:0] exc_cause = exc_illegal ? 4'd2 : exc_load ? 4'd4 :

@@ -196,6 +196,28 @@ fn loads_and_stores() {
     assert_eq!(ls.model_word(OUT + 4), Some(0xbb00));
 }
 
+/// A load's address from the word loaded just before: the alignment is the loaded word's, not
+/// what is in the pipeline while the address waits for it (the pipelined core checks the
+/// alignment in the stage that waits).
+#[test]
+fn loaded_base_used_at_once() {
+    let mut p = Prog::new();
+    p.li(S0, OUT).li(A0, OUT + 2).li(A1, 0x1234_5678);
+    p.i(isa::sw(A0, S0, 0)); // OUT: OUT + 2
+    p.i(isa::sw(A1, S0, 4)); // OUT + 4: 0x1234_5678
+    p.i(isa::lw(A2, S0, 0)); // OUT + 2
+    p.i(isa::lw(A3, A2, 2)); // OUT + 4: aligned through the loaded base
+    p.i(isa::lw(A2, S0, 0));
+    p.i(isa::sw(A3, A2, 6)); // OUT + 8
+    p.i(isa::lw(A2, S0, 0));
+    p.i(isa::lh(T2, A2, 4)); // OUT + 6: 0x1234
+    p.exit_pass();
+    let (run, ls) = run_pass(&p);
+    let x = run.hart.x;
+    assert_eq!([x[13], x[7]], [0x1234_5678, 0x1234]);
+    assert_eq!(ls.model_word(OUT + 8), Some(0x1234_5678));
+}
+
 #[test]
 fn branches_and_jumps() {
     // Each taken branch skips an `addi a2, a2, 1`; each fall-through executes one.
