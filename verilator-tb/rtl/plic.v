@@ -2,9 +2,15 @@
 // priorities 0..7. Same register layout as the SiFive PLIC: priority at 4*n, pending at
 // 0x1000, enables at 0x2000, threshold at 0x20_0000, claim/complete at 0x20_0004. Sources are
 // level triggered; a claimed source is not pending again until it is completed.
+//
+// SRC_REG = 1 (the pipelined core's SoC): the source lines are registered first, so a device's
+// interrupt logic and the arbitration behind the claim register are not one path (a source
+// is seen one cycle later).
 `default_nettype none
 
-module plic (
+module plic #(
+    parameter integer SRC_REG = 0
+) (
     input  wire        clk,
     input  wire        rst,
     input  wire        sel,
@@ -19,7 +25,10 @@ module plic (
     reg [2:0]  prio [1:15];
     reg [15:1] enable, in_service;
     reg [2:0]  threshold;
-    wire [15:1] pending = src & ~in_service;
+    reg  [15:1] src_q;
+    always @(posedge clk) src_q <= src;
+    wire [15:1] src_in = SRC_REG != 0 ? src_q : src;
+    wire [15:1] pending = src_in & ~in_service;
 
     reg [3:0] best_id;
     reg [2:0] best_prio;

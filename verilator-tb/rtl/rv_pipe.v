@@ -10,7 +10,7 @@
 //   X  execute: operands forwarded from M or from the word written at the edge that began the
 //      cycle; ALU, branches and jumps (resolved here: the instructions fetched behind a taken
 //      one are discarded; a JAL's target, and a backward branch's, were already fetched from
-//      D, see `d_jump`), CSRs (all in flip-flops), traps and interrupts (taken here, between
+//      D, see `d_guess`), CSRs (all in flip-flops), traps and interrupts (taken here, between
 //      instructions), the multiplier, the iterative divider (the pipeline waits), load and
 //      store addresses.
 //   M  memory and write-back: the data bus is driven from M's registers; the SoC's memories
@@ -114,6 +114,7 @@ module rv_pipe #(
     reg        m_amo, m_amo2;
     reg [31:0] m_result;  // rd for the others; the AMO's rs2
     reg [31:0] m_addr;
+    reg        m_fetch;   // m_addr is in the fetch memory's region
     reg        m_rd_mem;  // reads memory (dmem_re)
     reg [3:0]  m_rmask, m_wstrb;
     reg [31:0] m_wdata;
@@ -131,6 +132,9 @@ module rv_pipe #(
     reg        res_valid;
     reg [31:0] res_addr;
     reg        intr_pend;  // the next record is an interrupt handler's first instruction
+    reg        t_int;      // the trap of the cycle before (written at `trap_q`)
+    reg [3:0]  t_code;
+    reg [31:0] t_pc, t_tval;
     reg [2:0]  intr_lines;
     // divider (and the sequential multiplier)
     reg        md_busy;
@@ -453,8 +457,12 @@ module rv_pipe #(
 
     // ================================================================ X: control
     wire [31:0] pc_plus = x_pc + {29'd0, !x_c, x_c, 1'b0};
-    wire jump = is_jal | is_jalr | (is_branch && br_taken);
-    wire [31:0] next_pc = jump ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
+    wire jump_nb = is_jal | is_jalr;
+    wire jump = jump_nb | (is_branch && br_taken);
+    // the next pc if a conditional branch here is taken, and if not (`next_pc` picks)
+    wire [31:0] next_t = (jump_nb | is_branch) ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
+    wire [31:0] next_n = jump_nb ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
+    wire [31:0] next_pc = br_taken ? next_t : next_n;
 
     wire exc_illegal = x_illegal;
     // (not while the address waits for a loaded word: the forwarded operand is not it yet)
@@ -462,7 +470,9 @@ module rv_pipe #(
     wire exc_store   = !exc_illegal && (is_store || is_sc || is_amo) && ls_misaligned &&
                        !load_use;
     wire exc_misal   = exc_load | exc_store;
-    wire exc = exc_illegal | exc_misal | is_ecall | is_ebreak;
+    // the exceptions known from the instruction alone (registered), and the misaligned access
+    wire exc_fixed = exc_illegal | is_ecall | is_ebreak;
+    wire exc = exc_fixed | exc_misal;
     wire [3:0] exc_cause = exc_illegal ? 4'd2 : exc_load ? 4'd4 :
                            exc_store ? 4'd6 : is_ebreak ? 4'd3 : 4'd11;
     wire [31:0] exc_tval = exc_illegal ? insn : exc_misal ? ls_addr : 32'd0;
@@ -472,7 +482,7 @@ module rv_pipe #(
 
     // A store landing at the end of this cycle into an instruction already fetched: those
     // are fetched again (X, D and F discarded, F restarts at the oldest).
-    wire        st_now  = m_valid && m_wstrb != 4'd0 && m_addr[31:20] == FETCH_REGION;
+    wire        st_now  = m_valid && m_wstrb != 4'd0 && m_fetch;
     wire [FETCH_AW-1:0] st_word = m_addr[FETCH_AW+1:2];
     // (an instruction at a halfword address may end in the next word: the word before the
     // store's counts too)
@@ -497,14 +507,26 @@ module rv_pipe #(
     wire iter_wait = is_iter && !md_done;
     wire wfi_wait  = is_wfi && irq_pend == 3'd0;
     wire x_stall   = load_use || !m_free || iter_wait || wfi_wait || csr_wait;
-    wire x_commit  = x_live && !irq_take && !exc && !x_stall;
+    wire x_ok      = x_live && !irq_take && !x_stall;  // completes unless it traps
+    wire x_commit  = x_ok && !exc;
+    // ... for instructions that are not memory accesses (no misaligned exception)
+    wire x_done    = x_ok && !exc_fixed;
     wire x_trap    = irq_take || (x_exc && m_free);   // an exception's record needs M
     wire [31:0] trap_vec = {mtvec[31:6],
                             mtvec[5:2] | (irq_take && mtvec[0] ? irq_cause : 4'd0), 2'b00};
-    // a jump the fetch did not take from D, or a backward branch it took that is not taken
-    wire redirect_x = x_trap || (x_commit && ((jump ^ x_jd) || is_mret));
-    wire [31:0] redirect_pc = smc ? smc_pc : x_trap ? trap_vec : next_pc;
-    wire redirect = smc || redirect_x;
+    // The fetch follows X in the cycle X resolves control flow: a jump the fetch did not take
+    // from D, a backward branch it took that is not taken, an MRET (never an exception); a
+    // store into a fetched instruction. A trap discards D and X at once but sends the fetch
+    // to its handler in the next cycle (`trap_q`), and its CSRs are written then: so whether
+    // an access is misaligned does not steer the fetch address or wide registers' enables.
+    reg         trap_q;
+    reg  [31:0] trap_pc_q;
+    // Both outcomes of a conditional branch are worked out (`_t`: taken, `_n`: not) and the
+    // comparison picks last, so its carry chain ends one selection before the fetch address.
+    wire rf_t = smc || trap_q || (x_done && (((jump_nb | is_branch) ^ x_jd) || is_mret));
+    wire rf_n = smc || trap_q || (x_done && ((jump_nb ^ x_jd) || is_mret));
+    wire redirect_f = br_taken ? rf_t : rf_n;
+    wire redirect = redirect_f || x_trap;
 
     // X result (everything but loaded words)
     wire t_sum   = is_lui || is_auipc || ((is_opimm || is_op) && f3 == 3'd0);
@@ -521,7 +543,7 @@ module rv_pipe #(
 
     // CSR writes (at commit). WARL as rv_core: mepc bit 0 reads zero; mtvec bit 1 reads zero,
     // and a vectored table is 64-byte aligned.
-    wire wr_csr = x_commit && is_csr && csr_writes;
+    wire wr_csr = x_done && is_csr && csr_writes;
     wire [31:0] csr_wval = {csr_wdata[31:6],
                             csr_wdata[5:2] & ~{4{csr_addr == 12'h305 && csr_wdata[0]}},
                             csr_wdata[1] & !(csr_addr == 12'h305),
@@ -529,11 +551,12 @@ module rv_pipe #(
 
     // ================================================================ D and F
     // X takes D's instruction when X is empty or its instruction leaves
-    wire x_leaves = !x_valid || x_commit || x_trap || smc;
+    // (x_commit || x_trap, but without the misaligned check: an access that traps leaves
+    // when M is free, as one that completes)
+    wire x_leaves = !x_valid || smc ||
+                    (x_live && (irq_take || (exc_fixed ? m_free : !x_stall)));
     wire d_to_x   = d_valid && x_leaves && !redirect;
-    wire d_free   = !d_valid || d_to_x;
-    wire f_to_d   = d_free && !redirect;
-    wire d_open   = !d_valid || x_leaves;     // D may take F's word (f_to_d unless redirect)
+    wire d_open   = !d_valid || x_leaves;     // D may take F's word (unless redirected)
     // JAL, C.J and C.JAL, and conditional branches backwards (loops: guessed taken), send the
     // fetch to their target as they leave D, from the fetched bits (not the expansion) so the
     // sum starts early: the word fetched behind them is discarded, one cycle instead of the
@@ -549,11 +572,22 @@ module rv_pipe #(
                  {{19{fr[31]}}, fr[31], fr[7], fr[30:25], fr[11:8], 1'b0});
     wire [31:0] d_target = d_pc + d_jimm;
     wire        d_guess  = d_is_jal || (d_is_br && d_back);
-    wire        d_jump   = d_to_x && d_guess;
+    // the fetch's next address for each outcome in X (a trap's redirect comes a cycle later)
+    wire        go_t = d_valid && x_leaves && !rf_t, go_n = d_valid && x_leaves && !rf_n;
+    wire [31:0] rpc_t = trap_q ? trap_pc_q : smc ? smc_pc : next_t;
+    wire [31:0] rpc_n = trap_q ? trap_pc_q : smc ? smc_pc : next_n;
     // the next fetch address: both sums from the register, the fetched word picks one
     wire [31:0] f_pc2 = f_pc + 32'd2, f_pc4 = f_pc + 32'd4;
     wire [31:0] f_next = imem_rdata[1:0] == 2'b11 ? f_pc4 : f_pc2;
     assign imem_addr = f_pc;
+    // f_pc's next value: f_next (chosen by the fetched word, which comes half a cycle late:
+    // last) or another (chosen by the branch's outcome, which comes late too)
+    wire        sel_t = !rf_t && !(go_t && d_guess) && (!d_valid || go_t);
+    wire        sel_n = !rf_n && !(go_n && d_guess) && (!d_valid || go_n);
+    wire [31:0] oth_t = rf_t ? rpc_t : (go_t && d_guess) ? d_target : f_pc;
+    wire [31:0] oth_n = rf_n ? rpc_n : (go_n && d_guess) ? d_target : f_pc;
+    wire        f_sel = br_taken ? sel_t : sel_n;
+    wire [31:0] f_oth = br_taken ? oth_t : oth_n;
 
     // register-file read ports: the instruction entering X, or X's again while it stays
     wire       x_stays = x_valid && !x_leaves;
@@ -642,6 +676,7 @@ module rv_pipe #(
             minstret <= 64'd0;
             res_valid <= 1'b0;
             res_addr <= 32'd0;
+            trap_q <= 1'b0;
             intr_pend <= 1'b0;
             intr_lines <= 3'd0;
             md_busy <= 1'b0;
@@ -650,9 +685,7 @@ module rv_pipe #(
             m_amo2 <= 1'b0;
         end else begin
             // ---------------------------------------------------- F, D
-            if (redirect) f_pc <= redirect_pc;
-            else if (d_jump) f_pc <= d_target;
-            else if (f_to_d) f_pc <= f_next;
+            f_pc <= f_sel ? f_next : f_oth;
             // D and X take their registers whenever they may take an instruction, without
             // waiting for X's branch outcome (a redirect only clears the valid bits): the
             // enables of these wide registers stay off the execute stage's longest path.
@@ -676,7 +709,7 @@ module rv_pipe #(
             // the divider runs while the instruction waits in X (not while it waits for M)
             if (smc || !x_valid || irq_take) begin
                 md_busy <= 1'b0;
-            end else if (is_iter && !exc) begin
+            end else if (is_iter && !exc_fixed) begin
                 if (!md_busy && !load_use) begin
                     md_busy <= 1'b1;
                     md_cnt <= 6'd0;
@@ -692,33 +725,42 @@ module rv_pipe #(
                         md_quo <= {mq_sum[0], md_quo[31:1]};
                         md_rem <= mq_sum[32:1];
                     end
-                end else if (x_commit) begin
+                end else if (x_done) begin
                     md_busy <= 1'b0;
                 end
             end
 
-            if (x_trap) begin
-                mcause_int <= irq_take;
-                mcause_code <= irq_take ? irq_cause : exc_cause;
+            // a trap: the fetch and the CSRs in the next cycle (D and X are empty then)
+            trap_q <= x_trap;
+            trap_pc_q <= trap_vec;
+            t_int <= irq_take;
+            t_code <= irq_take ? irq_cause : exc_cause;
+            t_pc <= x_pc;
+            t_tval <= irq_take ? 32'd0 : exc_tval;
+            if (trap_q) begin
+                mcause_int <= t_int;
+                mcause_code <= t_code;
                 mstatus_mpie <= mstatus_mie;
                 mstatus_mie <= 1'b0;
-                mepc <= x_pc;
-                mtval <= irq_take ? 32'd0 : exc_tval;
-                if (irq_take) begin
-                    intr_pend <= 1'b1;
-                    intr_lines <= lines;
-                end
+                mepc <= t_pc;
+                mtval <= t_tval;
+            end
+            if (irq_take) begin
+                intr_pend <= 1'b1;
+                intr_lines <= lines;
             end
             if (x_commit) begin
-                if (is_mret) begin
-                    mstatus_mie <= mstatus_mpie;
-                    mstatus_mpie <= 1'b1;
-                end
                 if (is_lr) begin
                     res_valid <= 1'b1;
                     res_addr <= ls_addr;
                 end
                 if (is_sc || is_amo) res_valid <= 1'b0;
+            end
+            if (x_done) begin
+                if (is_mret) begin
+                    mstatus_mie <= mstatus_mpie;
+                    mstatus_mpie <= 1'b1;
+                end
                 if (wr_csr) begin
                     case (csr_addr)
                         12'h300: begin
@@ -750,8 +792,10 @@ module rv_pipe #(
                 // the AMO's first cycle: the word is loaded; the store follows
                 m_amo2 <= 1'b1;
                 m_loaded <= dmem_rdata;
-            end else if (x_commit || (x_exc && m_free)) begin
-                m_valid <= 1'b1;
+            end else begin
+                // M's registers take X's whether or not it comes (only the valid bit waits
+                // for the commit decision)
+                m_valid <= x_commit || x_exc;
                 m_trap <= x_exc;
                 m_intr <= intr_pend;
                 m_mip <= lines;
@@ -767,6 +811,7 @@ module rv_pipe #(
                 m_amo2 <= 1'b0;
                 m_result <= is_amo ? rs2v : x_result;
                 m_addr <= ls_addr;
+                m_fetch <= ls_addr[31:20] == FETCH_REGION;
                 m_rd_mem <= !x_exc && x_mem_rd;
                 m_rmask <= x_exc || !x_mem_rd ? 4'd0 : is_load ? st_mask : 4'b1111;
                 m_wstrb <= x_exc || !x_mem_wr ? 4'd0 : is_store ? st_mask : 4'b1111;
@@ -774,9 +819,7 @@ module rv_pipe #(
                 m_cnt_wr <= !x_exc && is_csr && csr_writes && csr_cnt;
                 m_cnt_sel <= {csr_addr[1], csr_addr[7]};
                 m_cnt_val <= csr_wdata;
-                intr_pend <= 1'b0;
-            end else if (m_done) begin
-                m_valid <= 1'b0;
+                if (x_commit || x_exc) intr_pend <= 1'b0;
             end
 
             // ---------------------------------------------------- M: retirement

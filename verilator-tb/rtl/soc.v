@@ -153,14 +153,28 @@ module soc #(
     always @(negedge clk) imem_in_ram_q <= imem_in_ram;
     assign imem_rdata = imem_in_ram_q ? ram_idata : 32'd0;
 
-    wire sel_ram   = dmem_addr[31:20] == 12'h800;
-    wire sel_fmem  = dmem_addr[31:24] == 8'h81 && dmem_addr[23:2] < FMEM_WORDS;
+    // the devices an address selects: {vision, UART1, UART0, PLIC, CLINT, frame window, RAM}
+    function automatic [6:0] select(input [31:0] a);
+        select = {VISION != 0 && a[31:16] == 16'h8113, a[31:3] == 29'h0200_0200,
+                  a[31:3] == 29'h0200_0000, a[31:22] == 10'b0000_1100_00,
+                  a[31:16] == 16'h0200, a[31:24] == 8'h81 && a[23:2] < FMEM_WORDS,
+                  a[31:20] == 12'h800};
+    endfunction
+    wire [6:0] sel = select(dmem_addr);
+    wire sel_ram   = sel[0];
+    wire sel_fmem  = sel[1];
     wire sel_sim   = dmem_addr[31:4] == 28'h0010_000;
-    wire sel_clint = dmem_addr[31:16] == 16'h0200;
-    wire sel_plic  = dmem_addr[31:22] == 10'b0000_1100_00;
-    wire sel_uart0 = dmem_addr[31:3] == 29'h0200_0000;
-    wire sel_uart1 = dmem_addr[31:3] == 29'h0200_0200;
-    wire sel_vis   = VISION != 0 && dmem_addr[31:16] == 16'h8113;
+    wire sel_clint = sel[2];
+    wire sel_plic  = sel[3];
+    wire sel_uart0 = sel[4];
+    wire sel_uart1 = sel[5];
+    wire sel_vis   = sel[6];
+    // The read data's selection: with the pipelined core, worked out at the edge that begins
+    // the cycle from the address given a cycle ahead (`dmem_next`), so the address decode is
+    // not on the load path.
+    reg  [6:0] sel_next_q;
+    always @(posedge clk) sel_next_q <= select(dmem_next);
+    wire [6:0] rsel = PIPE != 0 ? sel_next_q : sel;
 
     wire [31:0] ram_rdata;
     soc_ram #(.AW(RAM_AW), .EARLY(PIPE)) ram (
@@ -230,7 +244,7 @@ module soc #(
         .wstrb(dmem_wstrb), .wdata(dmem_wdata), .rdata(clint_rdata), .msip(msip), .mtip(mtip)
     );
 
-    plic plic0 (
+    plic #(.SRC_REG(PIPE)) plic0 (
         .clk(clk), .rst(rst), .sel(sel_plic), .offset(dmem_addr[21:0]), .re(dmem_re),
         .wstrb(dmem_wstrb), .wdata(dmem_wdata), .rdata(plic_rdata),
         .src({3'd0, vis_irq, uart1_irq, uart0_irq, 9'd0}), .eip(meip)
@@ -266,13 +280,13 @@ module soc #(
     );
 
     always @(*) begin
-        if (sel_ram) dmem_rdata = ram_rdata;
-        else if (sel_fmem) dmem_rdata = fmem_rdata;
-        else if (sel_clint) dmem_rdata = clint_rdata;
-        else if (sel_plic) dmem_rdata = plic_rdata;
-        else if (sel_uart0) dmem_rdata = uart0_rdata;
-        else if (sel_uart1) dmem_rdata = uart1_rdata;
-        else if (sel_vis) dmem_rdata = vis_rdata;
+        if (rsel[0]) dmem_rdata = ram_rdata;
+        else if (rsel[1]) dmem_rdata = fmem_rdata;
+        else if (rsel[2]) dmem_rdata = clint_rdata;
+        else if (rsel[3]) dmem_rdata = plic_rdata;
+        else if (rsel[4]) dmem_rdata = uart0_rdata;
+        else if (rsel[5]) dmem_rdata = uart1_rdata;
+        else if (rsel[6]) dmem_rdata = vis_rdata;
         else dmem_rdata = 32'd0;
     end
 endmodule
