@@ -458,7 +458,6 @@ module rv_pipe #(
     // ================================================================ X: control
     wire [31:0] pc_plus = x_pc + {29'd0, !x_c, x_c, 1'b0};
     wire jump_nb = is_jal | is_jalr;
-    wire jump = jump_nb | (is_branch && br_taken);
     // the next pc if a conditional branch here is taken, and if not (`next_pc` picks)
     wire [31:0] next_t = (jump_nb | is_branch) ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
     wire [31:0] next_n = jump_nb ? {sum[31:1], 1'b0} : is_mret ? mepc : pc_plus;
@@ -496,7 +495,9 @@ module rv_pipe #(
     wire [31:0] smc_pc = x_valid ? x_pc : d_valid ? d_pc : f_pc;
 
     // M accepts an instruction at the end of this cycle unless an AMO is in its first half
-    wire m_free = !(m_valid && m_amo && !m_amo2);
+    // (then M holds it)
+    wire m_holds = m_valid && m_amo && !m_amo2;
+    wire m_free = !m_holds;
     // a counter CSR write retires in M: a CSR access waits for it
     wire csr_wait = is_csr && m_valid && m_cnt_wr;
 
@@ -594,7 +595,6 @@ module rv_pipe #(
     wire [4:0] port_a = x_stays ? rs1 : fi[19:15];
     wire [4:0] port_b = x_stays ? rs2 : fi[24:20];
     // the register M writes in the next cycle: its AMO's again, or X's instruction's
-    wire       m_holds = m_valid && m_amo && !m_amo2;
     wire [4:0] m_rd_next = m_holds ? m_rd : x_commit ? rd_eff : 5'd0;
 
     // ================================================================ M
@@ -624,7 +624,7 @@ module rv_pipe #(
                           m_f5[0] ? m_result : m_loaded + m_result;
 
     wire m_act   = m_valid && !m_trap && !rst;
-    wire m_done  = m_valid && !(m_amo && !m_amo2);   // retires at the end of this cycle
+    wire m_done  = m_valid && !m_holds;   // retires at the end of this cycle
     assign dmem_addr   = {m_addr[31:2], 2'b00};
     assign dmem_next   = {ls_addr[31:2], 2'b00};
     assign dmem_re     = m_act && m_rd_mem && !(m_amo && m_amo2);
@@ -788,7 +788,7 @@ module rv_pipe #(
             end
 
             // ---------------------------------------------------- X -> M
-            if (m_valid && m_amo && !m_amo2) begin
+            if (m_holds) begin
                 // the AMO's first cycle: the word is loaded; the store follows
                 m_amo2 <= 1'b1;
                 m_loaded <= dmem_rdata;
