@@ -35,7 +35,7 @@ module rv_pipe #(
     parameter [31:0] RESET_PC = 32'h8000_0000,
     parameter [11:0] FETCH_REGION = 12'h800,
     parameter integer FETCH_AW = 18,
-    // 0: MUL* in one cycle on a 32x32 multiplier; 1: in the divider's loop (34 cycles)
+    // 0: MUL* in one cycle on a 32x32 multiplier; 1: in the divider's loop (11 cycles)
     parameter integer MUL_SEQ = 0
 ) (
     input  wire        clk,
@@ -140,6 +140,7 @@ module rv_pipe #(
     reg        md_busy;
     reg [5:0]  md_cnt;
     reg [31:0] md_quo, md_rem, md_div;
+    reg [33:0] md_div3;    // 3 x md_div (MUL_SEQ: the product takes four bits a cycle)
     // the last store into the fetch memory (for RAMs with a write buffer)
     reg [FETCH_AW-1:0] st_w;
     reg [3:0]  st_m;
@@ -391,7 +392,14 @@ module rv_pipe #(
     wire        use_lo   = is_shift ? !f3[2] || sh_zero : f3[1:0] == 2'd0;
     wire [32:0] md_sh  = {md_rem, md_quo[31]};
     wire [32:0] md_dif = md_sh - {1'b0, md_div};
-    wire [32:0] mq_sum = {1'b0, md_rem} + (md_quo[0] ? {1'b0, md_div} : 33'd0);
+    // MUL_SEQ: four multiplier bits a cycle, as two digits of 0..3 times the multiplicand
+    // (3 x in md_div3, worked out in the product's first cycle, when md_cnt is 60)
+    wire [33:0] mq_d0  = md_quo[1:0] == 2'd0 ? 34'd0 : md_quo[1:0] == 2'd1 ? {2'd0, md_div} :
+                         md_quo[1:0] == 2'd2 ? {1'd0, md_div, 1'd0} : md_div3;
+    wire [33:0] mq_d1  = md_quo[3:2] == 2'd0 ? 34'd0 : md_quo[3:2] == 2'd1 ? {2'd0, md_div} :
+                         md_quo[3:2] == 2'd2 ? {1'd0, md_div, 1'd0} : md_div3;
+    wire [35:0] mq_sum = {4'd0, md_rem} + {2'd0, mq_d0} + {mq_d1, 2'd0};
+    wire        mq_prep = md_cnt[5:4] == 2'b11;
     wire [31:0] sh_out = !f3[2] ? rs1v << shamt :
                          f7[5] ? $unsigned($signed(rs1v) >>> shamt) : rs1v >> shamt;
     wire        md_done = md_busy && md_cnt == 6'd32;
@@ -712,18 +720,23 @@ module rv_pipe #(
             end else if (is_iter && !exc_fixed) begin
                 if (!md_busy && !load_use) begin
                     md_busy <= 1'b1;
-                    md_cnt <= 6'd0;
+                    // a product: one cycle for md_div3, then 8 of 4 bits (60, 0, 4, .. 32)
+                    md_cnt <= MUL_SEQ == 0 || is_div ? 6'd0 : 6'd60;
                     md_quo <= abs_a;
                     md_rem <= 32'd0;
                     md_div <= abs_b;
                 end else if (md_busy && !md_done) begin
-                    md_cnt <= md_cnt + 6'd1;
                     if (MUL_SEQ == 0 || is_div) begin
+                        md_cnt <= md_cnt + 6'd1;
                         md_quo <= {md_quo[30:0], !md_dif[32]};
                         md_rem <= md_dif[32] ? md_sh[31:0] : md_dif[31:0];
+                    end else if (mq_prep) begin
+                        md_cnt <= 6'd0;
+                        md_div3 <= {2'd0, md_div} + {1'd0, md_div, 1'd0};
                     end else begin
-                        md_quo <= {mq_sum[0], md_quo[31:1]};
-                        md_rem <= mq_sum[32:1];
+                        md_cnt <= md_cnt + 6'd4;
+                        md_quo <= {mq_sum[3:0], md_quo[31:4]};
+                        md_rem <= mq_sum[35:4];
                     end
                 end else if (x_done) begin
                     md_busy <= 1'b0;

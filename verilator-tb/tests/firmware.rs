@@ -159,6 +159,13 @@ fn softcore_firmware_moves_the_car_on_the_pipelined_core() {
     moves_the_car(CoreVariant::Pipe);
 }
 
+/// The HX8K's core: pipelined, products in the sequential multiplier (the idle loop's time
+/// conversions multiply).
+#[test]
+fn softcore_firmware_moves_the_car_on_the_hx8k_core() {
+    moves_the_car(CoreVariant::PipeMulSeq);
+}
+
 fn moves_the_car(core: CoreVariant) {
     let Some(mut rig) = Rig::boot_on(core) else {
         return;
