@@ -35,6 +35,11 @@ pub struct Clint<B> {
     hz: u32,
     num: Divider,
     den: Divider,
+    /// The longest tick step converted from the last answer (`step * num + rem` fits 32 bits).
+    step_max: u32,
+    /// The longest microsecond step to a wakeup worked out from the last answer
+    /// (`us * den` fits 32 bits).
+    us_max: u32,
     last: Cell<Conversion>,
 }
 
@@ -137,11 +142,14 @@ impl<B: RegisterBus> Clint<B> {
 
     /// A timer whose `mtime` counts at `rate`.
     pub const fn with_rate(bus: B, rate: Rate) -> Self {
+        let num = Divider::new(rate.num);
         Self {
             bus,
             hz: rate.hz,
-            num: Divider::new(rate.num),
+            num,
             den: Divider::new(rate.den),
+            step_max: num.div(u32::MAX.saturating_sub(rate.den)),
+            us_max: u32::MAX / rate.den,
             last: Cell::new(Conversion {
                 ticks: 0,
                 micros: 0,
@@ -181,9 +189,8 @@ impl<B: RegisterBus> Clint<B> {
     fn micros_at(&self, ticks: u64) -> u64 {
         let last = self.last.get();
         let (num, den) = (self.num.divisor(), self.den.divisor());
-        let step_max = u64::from(self.num.div(u32::MAX.saturating_sub(den)));
         let m = match ticks.checked_sub(last.ticks) {
-            Some(d) if d <= step_max => {
+            Some(d) if d <= u64::from(self.step_max) => {
                 // d * num + rem < 2^32 by the bound on d.
                 let (q, rem) = self.den.div_rem(d as u32 * num + last.rem);
                 let micros = last.micros + u64::from(q);
@@ -222,10 +229,8 @@ impl<B: RegisterBus> Clint<B> {
         let Some(d) = us.checked_sub(last.micros) else {
             return last.ticks;
         };
-        if let Some(need) = u32::try_from(d)
-            .ok()
-            .and_then(|d| d.checked_mul(self.den.divisor()))
-        {
+        if d <= u64::from(self.us_max) {
+            let need = d as u32 * self.den.divisor();
             return last.ticks + u64::from(self.num.div_ceil(need.saturating_sub(last.rem)));
         }
         let t = micros_to_ticks(us, self.hz);
