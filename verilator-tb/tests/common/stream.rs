@@ -1,7 +1,8 @@
-//! Seeded random instruction streams: ALU, M, loads and stores (some misaligned), forward
-//! branches and jumps, atomics, CSR accesses, encodings that must be illegal, compressed
-//! instructions (ALU, loads and stores, branches and jumps, C.EBREAK, reserved encodings) and
-//! 32-bit ones at halfword addresses, and an external interrupt line toggled at random cycles.
+//! Seeded random instruction streams: ALU, M, loads and stores (some misaligned), pointers
+//! loaded from memory and used as a base by the next instruction, forward branches and jumps,
+//! atomics, CSR accesses, encodings that must be illegal, compressed instructions (ALU, loads
+//! and stores, branches and jumps, C.EBREAK, reserved encodings) and 32-bit ones at halfword
+//! addresses, and an external interrupt line toggled at random cycles.
 //! A trap handler skips every trapping instruction (2 or 4 bytes).
 use super::Prog;
 use rand::{Rng, SeedableRng};
@@ -56,7 +57,7 @@ fn rs(rng: &mut ChaCha8Rng) -> u8 {
 /// the end of the stream. Every word starts an instruction except the second of a 32-bit
 /// instruction at a halfword address, which no branch targets.
 fn gen(rng: &mut ChaCha8Rng, p: &mut Prog, room: usize, targets: &mut HashSet<usize>) {
-    match rng.random_range(0..120u32) {
+    match rng.random_range(0..126u32) {
         0..=24 => {
             let ops: [fn(u8, u8, u8) -> u32; 10] = [
                 isa::add,
@@ -225,6 +226,50 @@ fn gen(rng: &mut ChaCha8Rng, p: &mut Prog, room: usize, targets: &mut HashSet<us
             } else {
                 u32::from(cb) | nop << 16
             });
+        }
+        120..=124 => {
+            // a pointer loaded from memory and used as a base at once (the load-use case of
+            // an address: alignment, forwarding), a quarter of them misaligned; no branch may
+            // land inside, where the pointer would be a stale value
+            while (1..=3).any(|k| targets.contains(&(p.words.len() + k))) {
+                p.i(isa::NOP);
+            }
+            let slot = 4 * rng.random_range(-64..64);
+            let skew = if rng.random_range(0..4) == 0 {
+                rng.random_range(1..4)
+            } else {
+                0
+            };
+            let tmp = rd(rng);
+            // C.LW/C.SW need x8..x15 (x8 and x9 are reserved)
+            let ptr = if rng.random_range(0..3) == 0 {
+                rng.random_range(10..16u8)
+            } else {
+                rd(rng)
+            };
+            let off = rng.random_range(-64..64) * 4;
+            p.i(isa::addi(tmp, DATA, skew))
+                .i(isa::sw(tmp, DATA, slot))
+                .i(isa::lw(ptr, DATA, slot));
+            match rng.random_range(0..9) {
+                0 => p.i(isa::lw(rd(rng), ptr, off)),
+                1 => p.i(isa::lh(rd(rng), ptr, off)),
+                2 => p.i(isa::lbu(rd(rng), ptr, off + 1)),
+                3 => p.i(isa::sw(rs(rng), ptr, off)),
+                4 => p.i(isa::sh(rs(rng), ptr, off)),
+                5 => p.i(isa::amo_w(isa::amo::ADD, rd(rng), ptr, rs(rng))),
+                6 => p.i(isa::addi(rd(rng), ptr, off)),
+                _ if (10..16).contains(&ptr) => {
+                    let uimm = 4 * rng.random_range(0..32u32);
+                    let c = if rng.random_range(0..2) == 0 {
+                        isa::c::lw(rng.random_range(10..16u8), ptr, uimm)
+                    } else {
+                        isa::c::sw(rng.random_range(8..16u8), ptr, uimm)
+                    };
+                    p.i(u32::from(c) | u32::from(isa::c::NOP) << 16)
+                }
+                _ => p.i(isa::lw(rd(rng), ptr, off)),
+            };
         }
         _ => {
             // C.JR / C.JALR to LINK + off: neither the ADDI nor the jump may be a target
