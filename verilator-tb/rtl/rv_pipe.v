@@ -141,6 +141,7 @@ module rv_pipe #(
     reg [5:0]  md_cnt;
     reg [31:0] md_quo, md_rem, md_div;
     reg [33:0] md_div3;    // 3 x md_div (MUL_SEQ: the product takes four bits a cycle)
+    reg        md_sq;      // the result's sign fix-up (negate), from the operands at the start
     // the last store into the fetch memory (for RAMs with a write buffer)
     reg [FETCH_AW-1:0] st_w;
     reg [3:0]  st_m;
@@ -406,8 +407,10 @@ module rv_pipe #(
     wire [31:0] md_res = f3[1] ? md_rem : md_quo;
     wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
     wire [31:0] ng_in  = is_div ? md_res : prod_u[63:32];
-    wire        ng     = is_div ? md_neg : prod_neg;
-    wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, is_div ? md_neg : prod_neg & lo_zero};
+    // an iterative result's sign fix-up as latched at its start (md_sq), off the operands'
+    // forwarding; a one-cycle product's from the operands
+    wire        ng     = is_iter ? md_sq : prod_neg;
+    wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, ng && (is_div || lo_zero)};
     wire [31:0] mul_out = MUL_SEQ != 0 && is_shift ? sh_out :
                           use_lo && !is_div ? prod_u[31:0] : ng_out;
 
@@ -542,10 +545,13 @@ module rv_pipe #(
     wire t_link  = is_jal || is_jalr;
     wire t_logic = (is_opimm || is_op) && f3 != 3'd0 && f3[1:0] != 2'b01;
     wire t_mul   = (is_muldiv && !f3[2]) || is_shift;
-    wire [31:0] x_result =
-        ({32{t_sum}} & sum) | ({32{t_link}} & pc_plus) | ({32{t_logic}} & logic_out) |
+    // M's result: the adder's sum (the last to arrive) ORed into the rest, an AMO's rs2
+    // among the rest (its result comes from memory), so the sum is one selection from M
+    (* keep *) wire [31:0] x_other = is_amo ? rs2v :
+        ({32{t_link}} & pc_plus) | ({32{t_logic}} & logic_out) |
         ({32{t_mul | is_div}} & mul_out) | ({32{is_csr}} & csr_rdata) |
         {31'd0, is_sc && !sc_ok};
+    wire [31:0] x_result = ({32{t_sum}} & sum) | x_other;
     wire [4:0] rd_eff = writes_rd ? rd : 5'd0;
     wire x_mem_rd = is_load | is_lr | is_amo;
     wire x_mem_wr = is_store | is_amo | (is_sc && sc_ok);
@@ -589,14 +595,23 @@ module rv_pipe #(
     wire [31:0] f_pc2 = f_pc + 32'd2, f_pc4 = f_pc + 32'd4;
     wire [31:0] f_next = imem_rdata[1:0] == 2'b11 ? f_pc4 : f_pc2;
     assign imem_addr = f_pc;
-    // f_pc's next value: f_next (chosen by the fetched word, which comes half a cycle late:
-    // last) or another (chosen by the branch's outcome, which comes late too)
+    // f_pc's next value, for each outcome in X: f_next (chosen by the fetched word, which
+    // comes half a cycle late) when F moves on; a redirect's or a guess's target; or f_pc
+    // itself while D holds its instruction (an enable). The comparison picks last: the nets
+    // below are kept so the synthesis leaves it the last selection before f_pc (without
+    // them ABC folded it into the enable's logic, five LUTs deep).
     wire        sel_t = !rf_t && !(go_t && d_guess) && (!d_valid || go_t);
     wire        sel_n = !rf_n && !(go_n && d_guess) && (!d_valid || go_n);
-    wire [31:0] oth_t = rf_t ? rpc_t : (go_t && d_guess) ? d_target : f_pc;
-    wire [31:0] oth_n = rf_n ? rpc_n : (go_n && d_guess) ? d_target : f_pc;
-    wire        f_sel = br_taken ? sel_t : sel_n;
-    wire [31:0] f_oth = br_taken ? oth_t : oth_n;
+    wire        hold_t = !rf_t && d_valid && !x_leaves, hold_n = !rf_n && d_valid && !x_leaves;
+    (* keep *) wire [31:0] tgt_t = rf_t ? rpc_t : d_target;
+    (* keep *) wire [31:0] tgt_n = rf_n ? rpc_n : d_target;
+    (* keep *) wire br_k = br_taken;
+    (* keep *) wire en_t = !hold_t;
+    (* keep *) wire en_n = !hold_n;
+    (* keep *) wire sk_t = sel_t;
+    (* keep *) wire sk_n = sel_n;
+    wire        f_en = br_k ? en_t : en_n;
+    wire [31:0] f_d = (br_k ? sk_t : sk_n) ? f_next : br_k ? tgt_t : tgt_n;
 
     // register-file read ports: the instruction entering X, or X's again while it stays
     wire       x_stays = x_valid && !x_leaves;
@@ -693,7 +708,7 @@ module rv_pipe #(
             m_amo2 <= 1'b0;
         end else begin
             // ---------------------------------------------------- F, D
-            f_pc <= f_sel ? f_next : f_oth;
+            if (f_en) f_pc <= f_d;
             // D and X take their registers whenever they may take an instruction, without
             // waiting for X's branch outcome (a redirect only clears the valid bits): the
             // enables of these wide registers stay off the execute stage's longest path.
@@ -725,6 +740,7 @@ module rv_pipe #(
                     md_quo <= abs_a;
                     md_rem <= 32'd0;
                     md_div <= abs_b;
+                    md_sq <= is_div ? md_neg : prod_neg;
                 end else if (md_busy && !md_done) begin
                     if (MUL_SEQ == 0 || is_div) begin
                         md_cnt <= md_cnt + 6'd1;
@@ -822,7 +838,7 @@ module rv_pipe #(
                 m_f5 <= f5;
                 m_amo <= !x_exc && is_amo;
                 m_amo2 <= 1'b0;
-                m_result <= is_amo ? rs2v : x_result;
+                m_result <= x_result;   // an AMO's rs2
                 m_addr <= ls_addr;
                 m_fetch <= ls_addr[31:20] == FETCH_REGION;
                 m_rd_mem <= !x_exc && x_mem_rd;
