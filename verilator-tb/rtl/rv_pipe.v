@@ -595,23 +595,14 @@ module rv_pipe #(
     wire [31:0] f_pc2 = f_pc + 32'd2, f_pc4 = f_pc + 32'd4;
     wire [31:0] f_next = imem_rdata[1:0] == 2'b11 ? f_pc4 : f_pc2;
     assign imem_addr = f_pc;
-    // f_pc's next value, for each outcome in X: f_next (chosen by the fetched word, which
-    // comes half a cycle late) when F moves on; a redirect's or a guess's target; or f_pc
-    // itself while D holds its instruction (an enable). The comparison picks last: the nets
-    // below are kept so the synthesis leaves it the last selection before f_pc (without
-    // them ABC folded it into the enable's logic, five LUTs deep).
+    // f_pc's next value: f_next (chosen by the fetched word, which comes half a cycle late:
+    // last) or another (chosen by the branch's outcome, which comes late too)
     wire        sel_t = !rf_t && !(go_t && d_guess) && (!d_valid || go_t);
     wire        sel_n = !rf_n && !(go_n && d_guess) && (!d_valid || go_n);
-    wire        hold_t = !rf_t && d_valid && !x_leaves, hold_n = !rf_n && d_valid && !x_leaves;
-    (* keep *) wire [31:0] tgt_t = rf_t ? rpc_t : d_target;
-    (* keep *) wire [31:0] tgt_n = rf_n ? rpc_n : d_target;
-    (* keep *) wire br_k = br_taken;
-    (* keep *) wire en_t = !hold_t;
-    (* keep *) wire en_n = !hold_n;
-    (* keep *) wire sk_t = sel_t;
-    (* keep *) wire sk_n = sel_n;
-    wire        f_en = br_k ? en_t : en_n;
-    wire [31:0] f_d = (br_k ? sk_t : sk_n) ? f_next : br_k ? tgt_t : tgt_n;
+    wire [31:0] oth_t = rf_t ? rpc_t : (go_t && d_guess) ? d_target : f_pc;
+    wire [31:0] oth_n = rf_n ? rpc_n : (go_n && d_guess) ? d_target : f_pc;
+    wire        f_sel = br_taken ? sel_t : sel_n;
+    wire [31:0] f_oth = br_taken ? oth_t : oth_n;
 
     // register-file read ports: the instruction entering X, or X's again while it stays
     wire       x_stays = x_valid && !x_leaves;
@@ -708,7 +699,7 @@ module rv_pipe #(
             m_amo2 <= 1'b0;
         end else begin
             // ---------------------------------------------------- F, D
-            if (f_en) f_pc <= f_d;
+            f_pc <= f_sel ? f_next : f_oth;
             // D and X take their registers whenever they may take an instruction, without
             // waiting for X's branch outcome (a redirect only clears the valid bits): the
             // enables of these wide registers stay off the execute stage's longest path.
