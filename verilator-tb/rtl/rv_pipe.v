@@ -36,7 +36,10 @@ module rv_pipe #(
     parameter [11:0] FETCH_REGION = 12'h800,
     parameter integer FETCH_AW = 18,
     // 0: MUL* in one cycle on a 32x32 multiplier; 1: in the divider's loop (11 cycles)
-    parameter integer MUL_SEQ = 0
+    parameter integer MUL_SEQ = 0,
+    // conditional branches guessed in D from a table of 2^BHT_AW two-bit counters indexed by
+    // the pc's halfword (one block RAM at 11); 0: backward ones taken, forward ones not
+    parameter integer BHT_AW = 11
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -90,6 +93,7 @@ module rv_pipe #(
     reg        d_valid;
     reg [31:0] d_pc;
     reg [31:0] d_word;
+    reg [1:0]  d_bht;     // the counter of D's pc, read as the word was fetched
     // X
     reg        x_valid;
     reg [31:0] x_pc;
@@ -97,7 +101,8 @@ module rv_pipe #(
     reg        x_c;       // compressed (2 bytes)
     reg [31:0] x_imm;
     reg [31:0] x_raw;     // as fetched, for RVFI
-    reg        x_jd;      // the fetch already went to the target from D (JAL, backward branch)
+    reg        x_jd;      // the fetch already went to the target from D (JAL, branch guessed)
+    reg [1:0]  x_bht;     // the branch's counter as read for its guess
     reg [31:0] rf_a, rf_b;
     reg        byp_a, byp_b;
     reg [31:0] byp_val;
@@ -142,6 +147,15 @@ module rv_pipe #(
     reg [31:0] md_quo, md_rem, md_div;
     reg [33:0] md_div3;    // 3 x md_div (MUL_SEQ: the product takes four bits a cycle)
     reg        md_sq;      // the result's sign fix-up (negate), from the operands at the start
+    // branch history: per halfword address a two-bit counter of how often the branch went
+    // against the static guess (backward taken, forward not); guessed against it from 2 on.
+    // Read as an instruction is fetched, updated a cycle after its branch leaves X.
+    localparam integer BHT_N = BHT_AW > 0 ? 1 << BHT_AW : 1;
+    reg [1:0]  bht [0:BHT_N-1];
+    initial for (k = 0; k < BHT_N; k = k + 1) bht[k] = 2'd0;
+    reg        u_we;
+    reg [BHT_AW > 0 ? BHT_AW - 1 : 0:0] u_idx;
+    reg [1:0]  u_val;
     // the last store into the fetch memory (for RAMs with a write buffer)
     reg [FETCH_AW-1:0] st_w;
     reg [3:0]  st_m;
@@ -572,10 +586,11 @@ module rv_pipe #(
                     (x_live && (irq_take || (exc_fixed ? m_free : !x_stall)));
     wire d_to_x   = d_valid && x_leaves && !redirect;
     wire d_open   = !d_valid || x_leaves;     // D may take F's word (unless redirected)
-    // JAL, C.J and C.JAL, and conditional branches backwards (loops: guessed taken), send the
-    // fetch to their target as they leave D, from the fetched bits (not the expansion) so the
-    // sum starts early: the word fetched behind them is discarded, one cycle instead of the
-    // two of a jump resolved in X. X redirects a guessed branch that is not taken to the
+    // JAL, C.J and C.JAL, and conditional branches guessed taken (backwards ones, loops,
+    // unless their counter says otherwise; forward ones when it does), send the fetch to
+    // their target as they leave D, from the fetched bits (not the expansion) so the sum
+    // starts early: the word fetched behind them is discarded, one cycle instead of the two
+    // of a jump resolved in X. X redirects a guessed branch that is not taken to the
     // instruction after it (two cycles).
     wire        d_is_jal = fi_c ? f_j : fr[6:0] == 7'b1101111;
     wire        d_is_br  = fi_c ? f_b : fr[6:0] == 7'b1100011;
@@ -586,7 +601,7 @@ module rv_pipe #(
         (fr[3] ? {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0} :
                  {{19{fr[31]}}, fr[31], fr[7], fr[30:25], fr[11:8], 1'b0});
     wire [31:0] d_target = d_pc + d_jimm;
-    wire        d_guess  = d_is_jal || (d_is_br && d_back);
+    wire        d_guess  = d_is_jal || (d_is_br && (d_back ^ (BHT_AW > 0 && d_bht[1])));
     // the fetch's next address for each outcome in X (a trap's redirect comes a cycle later)
     wire        go_t = d_valid && x_leaves && !rf_t, go_n = d_valid && x_leaves && !rf_n;
     wire [31:0] rpc_t = trap_q ? trap_pc_q : smc ? smc_pc : next_t;
@@ -668,6 +683,13 @@ module rv_pipe #(
     end
 
     always @(posedge clk) begin
+        if (BHT_AW > 0) begin
+            if (u_we) bht[u_idx] <= u_val;
+            if (d_open) d_bht <= bht[f_pc[BHT_AW > 0 ? BHT_AW : 1:1]];
+        end
+    end
+
+    always @(posedge clk) begin
         rvfi_valid <= 1'b0;
         mcycle <= mcycle + 64'd1;
         if (rst) begin
@@ -697,6 +719,7 @@ module rv_pipe #(
             md_cnt <= 6'd0;
             rvfi_order <= 64'd0;
             m_amo2 <= 1'b0;
+            u_we <= 1'b0;
         end else begin
             // ---------------------------------------------------- F, D
             f_pc <= f_sel ? f_next : f_oth;
@@ -707,6 +730,11 @@ module rv_pipe #(
                 d_pc <= f_pc;
                 d_word <= imem_rdata;
             end
+            // the branch's counter: against the static guess once more, or once less
+            u_we <= x_done && is_branch;
+            u_idx <= x_pc[BHT_AW > 0 ? BHT_AW : 1:1];
+            u_val <= (br_taken ^ x_imm[31]) ? x_bht + {1'b0, x_bht != 2'd3} :
+                                              x_bht - {1'b0, x_bht != 2'd0};
             d_valid <= !redirect && !(d_open && d_valid && d_guess);
 
             // ---------------------------------------------------- X
@@ -717,6 +745,7 @@ module rv_pipe #(
                 x_imm <= fi_c ? immc : imm32;
                 x_raw <= fi_c ? {16'd0, c} : fr;
                 x_jd <= d_guess;
+                x_bht <= d_bht;
                 xd <= d_dec;
                 x_valid <= d_to_x;
             end

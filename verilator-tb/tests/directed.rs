@@ -282,6 +282,64 @@ fn backward_branches() {
     assert_eq!([x[11], x[12], x[14], x[16]], [5, 3, 4, 7]);
 }
 
+/// The pipelined core's branch history: a forward branch taken every time is guessed taken
+/// once its counter has learnt it (one cycle instead of two), a backward branch never taken
+/// is guessed not taken, and a guess that turns out wrong (the counters say taken, the branch
+/// falls through; 32-bit and compressed, at word and halfword addresses) still runs the
+/// program as the golden model does.
+#[test]
+fn branch_history_guesses() {
+    let pair = |a: u16, b: u16| u32::from(a) | u32::from(b) << 16;
+    // `n` passes of: BNE forward, taken (skips an ADDI); C.BEQZ forward, taken, at a halfword
+    // address; BEQ backward, never taken; the loop's BNE back
+    let lp = |n: u32| {
+        let mut p = Prog::new();
+        p.li(A0, 1).li(A1, n).li(A2, 0).li(A3, 0);
+        p.i(isa::bne(A0, 0, 8)) // taken
+            .i(isa::addi(A2, A2, 1)) // skipped
+            .i(pair(c::NOP, c::beqz(A3, 6))) // taken, over the next word
+            .i(isa::addi(A2, A2, 0x100)) // skipped
+            .i(isa::beq(A0, 0, -16)) // never taken
+            .i(isa::addi(A1, A1, -1))
+            .i(isa::bne(A1, 0, -24));
+        p.exit_pass();
+        p
+    };
+    let mut cycles = Vec::new();
+    for core in [CoreVariant::Pipe, CoreVariant::PipeMulSeq] {
+        for n in [40, 80] {
+            let p = lp(n);
+            let mut ls = Lockstep::with_core(core);
+            ls.load(RAM_BASE, &p.words).expect("program fits");
+            let run = ls
+                .run(100_000, 1_000_000, &[])
+                .unwrap_or_else(|m| panic!("{core:?}: {}", describe(&m)));
+            assert_eq!(run.exit, Some(Exit::Pass), "{core:?}");
+            assert_eq!(run.hart.x[A2 as usize], 0, "{core:?}");
+            cycles.push(run.cycles);
+        }
+    }
+    // 40 passes more: 6 instructions, a cycle for each of the three taken branches guessed,
+    // none for the one never taken (9 cycles a pass; 13 with the static guesses)
+    assert_eq!(cycles[1] - cycles[0], 40 * 9, "cycles {cycles:?}");
+    assert_eq!(cycles[3] - cycles[2], 40 * 9, "cycles {cycles:?}");
+
+    // Wrong guesses: a forward branch taken 8 times, then not (its counter says taken), in
+    // 32-bit and compressed forms; the golden model and every core agree on the count.
+    let mut p = Prog::new();
+    p.li(A1, 12).li(A2, 0).li(A4, 4);
+    let top = p.here();
+    p.i(isa::blt(A4, A1, 8)) // taken while a1 > 4
+        .i(isa::addi(A2, A2, 1)) // counts the last 4 passes
+        .i(pair(c::addi(A1, -1), c::bnez(A1, 4))) // taken until a1 reaches 0
+        .i(pair(c::addi(A2, 0x10), c::NOP)); // once, when a1 is 0
+    let back = top as i32 - p.here() as i32;
+    p.i(isa::bne(A1, 0, back));
+    p.exit_pass();
+    let (run, _) = run_pass(&p);
+    assert_eq!(run.hart.x[A2 as usize], 4 + 0x10);
+}
+
 /// Installs a handler that records mcause, mepc and mtval to OUT.. and returns past the
 /// trapping instruction; returns the program with `mtvec` set.
 fn with_trap_recorder() -> Prog {
