@@ -30,6 +30,11 @@ pub struct Design {
     /// Conditional branches are predicted in decode: backward ones taken (loops), forward ones
     /// not taken; a predicted-taken branch costs `redirect - 1`, a wrong guess `redirect`.
     pub backward_taken: bool,
+    /// A table of this many two-bit counters (0: none), indexed by the branch's halfword
+    /// address, reverses the decode-stage guess of a conditional branch that has lately gone
+    /// against it (counting up when the branch does, down when it does not; reversed from 2
+    /// on), as `rtl/rv_pipe.v` does with `BHT_AW`. Needs `backward_taken`.
+    pub branch_table: usize,
     /// A return (`jalr x0, 0(ra)`) is predicted in decode from a return-address stack of this
     /// depth (0: none); a correct prediction costs `redirect - 1`.
     pub return_stack: usize,
@@ -60,6 +65,7 @@ impl Design {
         redirect: 2,
         jal_in_decode: false,
         backward_taken: false,
+        branch_table: 0,
         return_stack: 0,
         load_use: 1,
         mul_use: 0,
@@ -69,7 +75,7 @@ impl Design {
     };
 
     /// The designs compared in `docs/fpga.md`, each adding to the one before it.
-    pub fn candidates() -> [Design; 7] {
+    pub fn candidates() -> [Design; 8] {
         let plain = Design::FOUR_STAGE;
         let jal = Design {
             name: "+ JAL in decode",
@@ -81,10 +87,15 @@ impl Design {
             backward_taken: true,
             ..jal
         };
+        let table = Design {
+            name: "+ 2048-entry branch table in decode",
+            branch_table: 2048,
+            ..btfn
+        };
         let ras = Design {
             name: "+ 4-entry return stack",
             return_stack: 4,
-            ..btfn
+            ..table
         };
         let csr = Design {
             name: "+ CSRs in line",
@@ -101,7 +112,7 @@ impl Design {
             mul_use: 1,
             ..btb
         };
-        [plain, jal, btfn, ras, csr, btb, mul]
+        [plain, jal, btfn, table, ras, csr, btb, mul]
     }
 }
 
@@ -297,6 +308,7 @@ pub fn estimate(design: &Design, records: &[Retire], awake_cycles: u64) -> Estim
     let mut control = 0u64;
     let mut stack: Vec<u32> = Vec::new();
     let mut btb = Btb::new(design.btb_entries);
+    let mut table = vec![0u8; design.branch_table];
     for rec in records.iter().filter(|rec| !rec.trap) {
         let d = decode(rec.insn);
         let len = if rec.insn & 3 == 3 { 4 } else { 2 };
@@ -330,6 +342,21 @@ pub fn estimate(design: &Design, records: &[Retire], awake_cycles: u64) -> Estim
             }
         } else {
             match d.class {
+                Class::Branch { backward } if design.backward_taken && !table.is_empty() => {
+                    let n = table.len();
+                    let counter = &mut table[(rec.pc_rdata as usize >> 1) % n];
+                    let guess = backward ^ (*counter >= 2);
+                    *counter = if taken != backward {
+                        (*counter + 1).min(3)
+                    } else {
+                        counter.saturating_sub(1)
+                    };
+                    match (guess, taken) {
+                        (true, true) => early,
+                        (false, false) => 0,
+                        _ => r,
+                    }
+                }
                 Class::Branch { backward } => match (design.backward_taken, backward, taken) {
                     (true, true, true) => early,
                     (true, true, false) => r,
@@ -466,15 +493,30 @@ mod tests {
         let m = mix(&recs);
         assert_eq!((m.branches, m.taken, m.backward_taken), (3, 2, 2));
         assert_eq!((m.jal, m.jalr, m.returns), (1, 1, 1));
-        let [plain, jal, btfn, ras, ..] = Design::candidates();
+        let [plain, jal, btfn, table, ras, ..] = Design::candidates();
         // plain: 2 taken branches, the call and the return, 2 cycles each
         assert_eq!(estimate(&plain, &recs, 5).control, 8);
         // JAL in decode: the call costs 1
         assert_eq!(estimate(&jal, &recs, 5).control, 7);
         // backward taken: 1 + 1 for the taken ones, 2 for the exit
         assert_eq!(estimate(&btfn, &recs, 5).control, 2 + 2 + 1 + 2);
+        // the branch table starts from the same guesses
+        assert_eq!(estimate(&table, &recs, 5).control, 2 + 2 + 1 + 2);
         // and the return predicted
         assert_eq!(estimate(&ras, &recs, 5).control, 2 + 2 + 1 + 1);
+    }
+
+    #[test]
+    fn a_branch_table_learns_a_forward_branch() {
+        // a forward branch taken 5 times, then not: guessed not taken until its counter
+        // reaches 2 (two misses), then taken (1 each), then wrong at the end
+        let beq = isa::beq(A0, A1, 16);
+        let mut recs: Vec<Retire> = (0..5).map(|_| rec(0x100, beq, 0x110)).collect();
+        recs.push(rec(0x100, beq, 0x104));
+        let [_, _, btfn, table, ..] = Design::candidates();
+        assert_eq!(table.branch_table, 2048);
+        assert_eq!(estimate(&btfn, &recs, 6).control, 5 * 2);
+        assert_eq!(estimate(&table, &recs, 6).control, 2 + 2 + 1 + 1 + 1 + 2);
     }
 
     #[test]
@@ -484,7 +526,7 @@ mod tests {
         let bne = isa::bne(A0, A1, -8i32);
         let mut recs: Vec<Retire> = (0..5).map(|_| rec(0x108, bne, 0x100)).collect();
         recs.push(rec(0x108, bne, 0x10c));
-        let btb = Design::candidates()[5];
+        let btb = Design::candidates()[6];
         assert_eq!(btb.btb_entries, 64);
         assert_eq!(estimate(&btb, &recs, 6).control, 2 + 2);
     }
@@ -493,7 +535,7 @@ mod tests {
     fn csr_instructions_empty_the_pipeline_only_where_the_design_says() {
         let recs = [straight(0, isa::csrrs(A0, isa::csr::MSTATUS, ZERO))];
         assert_eq!(mix(&recs).csr, 1);
-        let [plain, _, _, ras, in_line, ..] = Design::candidates();
+        let [plain, _, _, _, ras, in_line, ..] = Design::candidates();
         assert_eq!(estimate(&plain, &recs, 1).serial, 2);
         assert_eq!(estimate(&ras, &recs, 1).serial, 2);
         assert_eq!(estimate(&in_line, &recs, 1).serial, 0);
