@@ -149,7 +149,9 @@ module rv_pipe #(
     reg        md_sq;      // the result's sign fix-up (negate), from the operands at the start
     // branch history: per halfword address a two-bit counter of how often the branch went
     // against the static guess (backward taken, forward not); guessed against it from 2 on.
-    // Read as an instruction is fetched, updated a cycle after its branch leaves X.
+    // Read as an instruction is fetched, updated a cycle after its branch leaves X. A counter
+    // only steers a guess that X checks, so a read of the entry being written (the block
+    // RAM's collision) can only cost a cycle, never change what the program does.
     localparam integer BHT_N = BHT_AW > 0 ? 1 << BHT_AW : 1;
     reg [1:0]  bht [0:BHT_N-1];
     initial for (k = 0; k < BHT_N; k = k + 1) bht[k] = 2'd0;
