@@ -35,7 +35,8 @@ module rv_pipe #(
     parameter [31:0] RESET_PC = 32'h8000_0000,
     parameter [11:0] FETCH_REGION = 12'h800,
     parameter integer FETCH_AW = 18,
-    // 0: MUL* in one cycle on a 32x32 multiplier; 1: in the divider's loop (11 cycles)
+    // 0: MUL* in one cycle on a 32x32 multiplier; 1: in the divider's loop (11 cycles, 7 when
+    // rs1 has at most 16 significant bits)
     parameter integer MUL_SEQ = 0,
     // conditional branches guessed in D from a table of 2^BHT_AW two-bit counters indexed by
     // the pc's halfword (one block RAM at 11); 0: backward ones taken, forward ones not
@@ -417,8 +418,17 @@ module rv_pipe #(
                          md_quo[3:2] == 2'd2 ? {1'd0, md_div, 1'd0} : md_div3;
     wire [35:0] mq_sum = {4'd0, md_rem} + {2'd0, mq_d0} + {mq_d1, 2'd0};
     wire        mq_prep = md_cnt[5:4] == 2'b11;
-    wire [31:0] sh_out = !f3[2] ? rs1v << shamt :
-                         f7[5] ? $unsigned($signed(rs1v) >>> shamt) : rs1v >> shamt;
+    // after the fourth digit, nothing left of the multiplier (its high half is zero): the
+    // last four steps would only shift, so they are taken at once (7 cycles a product)
+    wire        mq_early = md_cnt == 6'd12 && md_quo[19:4] == 16'd0;
+    // one right shifter: a left shift is the right shift of the reversed word, reversed
+    function automatic [31:0] rev32(input [31:0] v);
+        integer i;
+        for (i = 0; i < 32; i = i + 1) rev32[i] = v[31 - i];
+    endfunction
+    wire [31:0] sh_in  = f3[2] ? rs1v : rev32(rs1v);
+    wire [31:0] sh_r   = $unsigned($signed({f3[2] && f7[5] && rs1v[31], sh_in}) >>> shamt);
+    wire [31:0] sh_out = f3[2] ? sh_r : rev32(sh_r);
     wire        md_done = md_busy && md_cnt == 6'd32;
     wire [31:0] md_res = f3[1] ? md_rem : md_quo;
     wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
@@ -757,7 +767,8 @@ module rv_pipe #(
             end else if (is_iter && !exc_fixed) begin
                 if (!md_busy && !load_use) begin
                     md_busy <= 1'b1;
-                    // a product: one cycle for md_div3, then 8 of 4 bits (60, 0, 4, .. 32)
+                    // a product: one cycle for md_div3, then 8 of 4 bits (60, 0, 4, .. 32), or 4
+                    // when the multiplier (rs1) has no more than 16 significant bits
                     md_cnt <= MUL_SEQ == 0 || is_div ? 6'd0 : 6'd60;
                     md_quo <= abs_a;
                     md_rem <= 32'd0;
@@ -771,6 +782,10 @@ module rv_pipe #(
                     end else if (mq_prep) begin
                         md_cnt <= 6'd0;
                         md_div3 <= {2'd0, md_div} + {1'd0, md_div, 1'd0};
+                    end else if (mq_early) begin
+                        md_cnt <= 6'd32;
+                        md_quo <= {mq_sum[19:0], md_quo[31:20]};
+                        md_rem <= {16'd0, mq_sum[35:20]};
                     end else begin
                         md_cnt <= md_cnt + 6'd4;
                         md_quo <= {mq_sum[3:0], md_quo[31:4]};
