@@ -71,7 +71,7 @@ impl Board {
     }
 
     /// `PIPE` of the board's SoC: the pipelined core (`rv_pipe`) where it fits (the HX8K; the
-    /// UP5K's SoC is 114 % of the part with it).
+    /// UP5K's SoC is 124 % of the part with it).
     pub fn pipe(self) -> u32 {
         u32::from(matches!(self, Board::Hx8k))
     }

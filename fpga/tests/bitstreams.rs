@@ -1,7 +1,7 @@
 //! Bitstreams through the whole flow: synthesised, placed and routed with nextpnr's fixed seed,
 //! packed by icepack, and timed (the paths through DSP blocks included, see `fpga::report`).
 //!
-//! What holds today (docs/fpga.md, timing): on the UP5K the SoC fits but reaches about 7.7 MHz,
+//! What holds today (docs/fpga.md, timing): on the UP5K the SoC fits but reaches about 6.7 MHz,
 //! so its bitstream is built with the board top's bring-up clock divider (the SoC clock / 4,
 //! 3.7 MHz) and must meet that; the HX8K SoC (its core multiplying in the divider's loop, as
 //! the part has no DSP blocks) must meet the SoC clock itself. `cargo xtask bench --only
