@@ -41,9 +41,17 @@ pub struct Design {
     /// Cycles an instruction waits when it reads the word the instruction just before it
     /// loaded (load data arrives at the end of the memory stage).
     pub load_use: u32,
+    /// Cycles an instruction waits when it reads the word the instruction two before it
+    /// loaded, the one between not reading it (load data arriving a stage after memory).
+    pub load_use2: u32,
     /// Cycles an instruction waits when it reads the product of the instruction just before
     /// it (a multiplier split over execute and memory; 0 for a one-stage product).
     pub mul_use: u32,
+    /// ... the product of the instruction two before it, the one between not reading it.
+    pub mul_use2: u32,
+    /// Cycles an instruction waits when it reads the result of a shift or a CSR read just
+    /// before it (those results a stage after execute, as in deeper pipelines).
+    pub late_use: u32,
     /// A branch target buffer of this many entries (0: none), direct-mapped by address, with
     /// a two-bit counter each: it predicts at fetch where a branch or a jump goes (a correct
     /// prediction costs nothing, a wrong one `redirect`); it replaces the decode-stage schemes
@@ -68,11 +76,54 @@ impl Design {
         branch_table: 0,
         return_stack: 0,
         load_use: 1,
+        load_use2: 0,
         mul_use: 0,
+        mul_use2: 0,
+        late_use: 0,
         btb_entries: 0,
         serialize: 2,
         csr_serialize: true,
     };
+
+    /// Six stages (two fetch stages, decode with the register-file read, execute, memory,
+    /// write-back), the plan of `docs/fpga.md` for the clock goals: control flow resolved in
+    /// execute behind three stages, predicted at fetch by a branch target buffer, returns from
+    /// a stack in decode; loaded words and products written back a stage after memory, shift
+    /// results and CSR reads a stage after execute; CSR instructions in line; the pipeline
+    /// emptied behind MRET, WFI, ECALL, EBREAK and trap entries (three cycles). The first
+    /// design has a 64-entry buffer, the second 256 entries (two block RAMs), the third also
+    /// has each loaded word at the end of the memory stage, as `rtl/rv_pipe.v` has it (the
+    /// RAM read from the execute stage's address).
+    pub fn six_stage() -> [Design; 3] {
+        let six = Design {
+            name: "6 stages, 64-entry branch target buffer, late results",
+            redirect: 3,
+            jal_in_decode: false,
+            backward_taken: false,
+            branch_table: 0,
+            return_stack: 4,
+            load_use: 2,
+            load_use2: 1,
+            mul_use: 2,
+            mul_use2: 1,
+            late_use: 1,
+            btb_entries: 64,
+            serialize: 3,
+            csr_serialize: false,
+        };
+        let big = Design {
+            name: "+ 256-entry branch target buffer",
+            btb_entries: 256,
+            ..six
+        };
+        let early_load = Design {
+            name: "+ loaded words at the end of memory",
+            load_use: 1,
+            load_use2: 0,
+            ..big
+        };
+        [six, big, early_load]
+    }
 
     /// The designs compared in `docs/fpga.md`, each adding to the one before it.
     pub fn candidates() -> [Design; 8] {
@@ -133,6 +184,8 @@ enum Class {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Decoded {
     class: Class,
+    /// A shift or a CSR read: its result comes a stage after execute in deeper designs.
+    late: bool,
     rd: u8,
     rs1: Option<u8>,
     rs2: Option<u8>,
@@ -185,8 +238,11 @@ fn decode(raw: u32) -> Decoded {
         0x0f => (Class::Other, false, false, false),
         _ => (Class::System, false, false, false),
     };
+    let opcode = insn & 0x7f;
+    let shift = (opcode == 0x13 || (opcode == 0x33 && insn >> 25 != 1)) && f3 & 3 == 1;
     Decoded {
         class,
+        late: shift || class == Class::Csr,
         rd: if writes { rd } else { 0 },
         rs1: if reads1 { nz(rs1) } else { None },
         rs2: if reads2 { nz(rs2) } else { None },
@@ -220,6 +276,12 @@ pub struct Mix {
     pub muls: u64,
     /// Of those, products the next instruction reads.
     pub mul_use: u64,
+    /// Loads whose word the instruction two after reads, the next not reading it.
+    pub load_use2: u64,
+    /// Products likewise.
+    pub mul_use2: u64,
+    /// Shifts and CSR reads whose result the next instruction reads.
+    pub late_use: u64,
     /// CSR instructions.
     pub csr: u64,
     /// MRET, WFI, ECALL, EBREAK and illegal instructions.
@@ -249,26 +311,41 @@ pub struct Estimate {
 pub fn mix(records: &[Retire]) -> Mix {
     let mut m = Mix::default();
     let mut prev: Option<Decoded> = None;
+    let mut prev2: Option<Decoded> = None;
     for r in records {
         m.instructions += 1;
         if r.intr {
             m.traps += 1;
             prev = None;
+            prev2 = None;
         }
         if r.trap {
             m.traps += 1;
             prev = None;
+            prev2 = None;
             continue;
         }
         let d = decode(r.insn);
         let len = if r.insn & 3 == 3 { 4 } else { 2 };
         let next_seq = r.pc_rdata.wrapping_add(len);
+        let reads = |reg: u8| d.rs1 == Some(reg) || d.rs2 == Some(reg);
         if let Some(p) = prev {
-            let reads = |reg: u8| d.rs1 == Some(reg) || d.rs2 == Some(reg);
             if p.rd != 0 && reads(p.rd) {
                 match p.class {
                     Class::Load => m.load_use += 1,
                     Class::Mul => m.mul_use += 1,
+                    _ if p.late => m.late_use += 1,
+                    _ => {}
+                }
+            }
+        }
+        if let (Some(p2), Some(p)) = (prev2, prev) {
+            // the instruction between did not wait for it (nor wrote the register again)
+            let between = p.rs1 == Some(p2.rd) || p.rs2 == Some(p2.rd) || p.rd == p2.rd;
+            if p2.rd != 0 && reads(p2.rd) && !between {
+                match p2.class {
+                    Class::Load => m.load_use2 += 1,
+                    Class::Mul => m.mul_use2 += 1,
                     _ => {}
                 }
             }
@@ -294,6 +371,7 @@ pub fn mix(records: &[Retire]) -> Mix {
             Class::System => m.system += 1,
             Class::Other => {}
         }
+        prev2 = prev;
         prev = Some(d);
     }
     m
@@ -368,7 +446,11 @@ pub fn estimate(design: &Design, records: &[Retire], awake_cycles: u64) -> Estim
             }
         };
     }
-    let data = m.load_use * u64::from(design.load_use) + m.mul_use * u64::from(design.mul_use);
+    let data = m.load_use * u64::from(design.load_use)
+        + m.load_use2 * u64::from(design.load_use2)
+        + m.mul_use * u64::from(design.mul_use)
+        + m.mul_use2 * u64::from(design.mul_use2)
+        + m.late_use * u64::from(design.late_use);
     let emptied = m.system + m.traps + if design.csr_serialize { m.csr } else { 0 };
     let serial = emptied * u64::from(design.serialize);
     let cycles = awake_cycles + control + data + serial;
@@ -468,6 +550,45 @@ mod tests {
         assert_eq!((m.loads, m.load_use), (2, 1));
         let e = estimate(&Design::FOUR_STAGE, &recs, 5);
         assert_eq!((e.data, e.control, e.cycles), (1, 0, 6));
+    }
+
+    #[test]
+    fn six_stages_wait_longer_and_further() {
+        let recs = [
+            straight(0, isa::lw(A0, SP, 0)),
+            straight(4, isa::addi(A1, A0, 1)), // at once: 2 cycles
+            straight(8, isa::lw(A2, SP, 4)),
+            straight(12, isa::addi(A3, A1, 1)),
+            straight(16, isa::addi(A4, A2, 1)), // two after: 1 cycle
+            straight(20, isa::slli(A5, A4, 2)),
+            straight(24, isa::add(T0, A5, A5)), // a shift's result at once: 1 cycle
+            straight(28, isa::lw(T1, SP, 8)),
+            straight(32, isa::addi(T1, ZERO, 1)), // overwrites t1 ...
+            straight(36, isa::addi(A0, T1, 1)),   // ... so this reads its value: no wait
+        ];
+        let m = mix(&recs);
+        assert_eq!((m.load_use, m.load_use2, m.late_use), (1, 1, 1));
+        let [six, big, early_load] = Design::six_stage();
+        assert_eq!(big.btb_entries, 256);
+        let e = estimate(&six, &recs, 10);
+        assert_eq!((e.data, e.control, e.cycles), (2 + 1 + 1, 0, 14));
+        // with the word at the end of memory, only the one used at once waits, a cycle
+        assert_eq!(estimate(&early_load, &recs, 10).data, 1 + 1);
+        // the four-stage design waits only for the word used at once
+        assert_eq!(estimate(&Design::FOUR_STAGE, &recs, 10).data, 1);
+    }
+
+    #[test]
+    fn six_stages_lose_three_cycles_on_a_wrong_fetch() {
+        // a forward branch taken once (no entry yet: 3) and a return from the stack (2)
+        let recs = [
+            rec(0x100, isa::beq(A0, A1, 16), 0x110),
+            rec(0x110, isa::jal(RA, 0x100), 0x210),
+            rec(0x210, isa::jalr(ZERO, RA, 0), 0x114),
+        ];
+        let [six, ..] = Design::six_stage();
+        // the JAL misses the empty buffer too
+        assert_eq!(estimate(&six, &recs, 3).control, 3 + 3 + 2);
     }
 
     #[test]

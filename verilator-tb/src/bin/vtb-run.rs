@@ -113,13 +113,23 @@ fn print_pipeline(records: &[Retire], awake: u64) {
         pct(m.system),
         pct(m.traps),
     );
+    println!(
+        "two after: loaded words {:.2} %, products {:.2} %; shift and CSR results used at once \
+         {:.2} %",
+        pct(m.load_use2),
+        pct(m.mul_use2),
+        pct(m.late_use),
+    );
     println!("| design | control | data | serial | awake cycles | CPI |");
     println!("|---|---:|---:|---:|---:|---:|");
     println!(
         "| this core | | | | {awake} | {:.3} |",
         awake as f64 / m.instructions.max(1) as f64
     );
-    for d in pipeline::Design::candidates() {
+    let designs = pipeline::Design::candidates()
+        .into_iter()
+        .chain(pipeline::Design::six_stage());
+    for d in designs {
         let e = pipeline::estimate(&d, records, awake);
         println!(
             "| {} | {} | {} | {} | {} | {:.3} |",
