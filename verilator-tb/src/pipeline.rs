@@ -3,8 +3,9 @@
 //! The FPGA goals (`docs/fpga.md`, Timing) need a pipelined core: fetch, decode with the
 //! register-file read, execute, memory (and write-back). Such a core loses cycles where this
 //! one does not: a taken branch or a jump discards the instructions fetched behind it, an
-//! instruction that needs a loaded word (or a product, when the multiplier takes two stages)
-//! right after it waits, and a trap entry, MRET or WFI (and, in simple designs, a CSR
+//! instruction that needs a loaded word (or a product, when the multiplier takes two stages;
+//! in deeper designs also a shift's result or a CSR read) right after it, or two after it in
+//! deeper designs, waits, and a trap entry, MRET or WFI (and, in simple designs, a CSR
 //! instruction) empties the pipeline. This module
 //! replays the retirement records of a run on the present core (which already pays for
 //! divisions, atomics, traps and counter carries) and adds those losses for a few designs, so
@@ -39,15 +40,18 @@ pub struct Design {
     /// depth (0: none); a correct prediction costs `redirect - 1`.
     pub return_stack: usize,
     /// Cycles an instruction waits when it reads the word the instruction just before it
-    /// loaded (load data arrives at the end of the memory stage).
+    /// loaded: 1 when the word arrives at the end of the memory stage, 2 when a stage later.
     pub load_use: u32,
     /// Cycles an instruction waits when it reads the word the instruction two before it
-    /// loaded, the one between not reading it (load data arriving a stage after memory).
+    /// loaded (1 when the word arrives a stage after memory), counted only where the one
+    /// between ran through without waiting (it neither read nor rewrote that register,
+    /// waited for an operand of its own, was a taken branch or a jump, nor divided).
     pub load_use2: u32,
     /// Cycles an instruction waits when it reads the product of the instruction just before
-    /// it (a multiplier split over execute and memory; 0 for a one-stage product).
+    /// it: 0 for a one-stage product, 1 for a multiplier over execute and memory, 2 when the
+    /// product is written back a stage after memory.
     pub mul_use: u32,
-    /// ... the product of the instruction two before it, the one between not reading it.
+    /// ... the product of the instruction two before it, counted as `load_use2`.
     pub mul_use2: u32,
     /// Cycles an instruction waits when it reads the result of a shift or a CSR read just
     /// before it (those results a stage after execute, as in deeper pipelines).
@@ -186,6 +190,8 @@ struct Decoded {
     class: Class,
     /// A shift or a CSR read: its result comes a stage after execute in deeper designs.
     late: bool,
+    /// A division (it holds the execute stage for many cycles).
+    divides: bool,
     rd: u8,
     rs1: Option<u8>,
     rs2: Option<u8>,
@@ -243,6 +249,7 @@ fn decode(raw: u32) -> Decoded {
     Decoded {
         class,
         late: shift || class == Class::Csr,
+        divides: opcode == 0x33 && insn >> 25 == 1 && f3 >= 4,
         rd: if writes { rd } else { 0 },
         rs1: if reads1 { nz(rs1) } else { None },
         rs2: if reads2 { nz(rs2) } else { None },
@@ -276,7 +283,8 @@ pub struct Mix {
     pub muls: u64,
     /// Of those, products the next instruction reads.
     pub mul_use: u64,
-    /// Loads whose word the instruction two after reads, the next not reading it.
+    /// Loads whose word the instruction two after reads, the one between having run through
+    /// (see [`Design::load_use2`]).
     pub load_use2: u64,
     /// Products likewise.
     pub mul_use2: u64,
@@ -297,7 +305,7 @@ pub struct Estimate {
     pub design: Design,
     /// Cycles lost to control flow.
     pub control: u64,
-    /// Cycles lost waiting for loaded words and products.
+    /// Cycles lost waiting for loaded words, products, shift results and CSR reads.
     pub data: u64,
     /// Cycles lost emptying the pipeline for system instructions and traps.
     pub serial: u64,
@@ -312,6 +320,9 @@ pub fn mix(records: &[Retire]) -> Mix {
     let mut m = Mix::default();
     let mut prev: Option<Decoded> = None;
     let mut prev2: Option<Decoded> = None;
+    // the instruction before this one waited, was a taken branch or a jump, or divided: an
+    // older result is there by the time this one needs it
+    let mut prev_held = false;
     for r in records {
         m.instructions += 1;
         if r.intr {
@@ -329,6 +340,7 @@ pub fn mix(records: &[Retire]) -> Mix {
         let len = if r.insn & 3 == 3 { 4 } else { 2 };
         let next_seq = r.pc_rdata.wrapping_add(len);
         let reads = |reg: u8| d.rs1 == Some(reg) || d.rs2 == Some(reg);
+        let mut waits = false;
         if let Some(p) = prev {
             if p.rd != 0 && reads(p.rd) {
                 match p.class {
@@ -337,15 +349,23 @@ pub fn mix(records: &[Retire]) -> Mix {
                     _ if p.late => m.late_use += 1,
                     _ => {}
                 }
+                waits = matches!(p.class, Class::Load | Class::Mul) || p.late;
             }
         }
         if let (Some(p2), Some(p)) = (prev2, prev) {
-            // the instruction between did not wait for it (nor wrote the register again)
+            // the instruction between neither read the register (it waited for it then) nor
+            // wrote it again, and ran through
             let between = p.rs1 == Some(p2.rd) || p.rs2 == Some(p2.rd) || p.rd == p2.rd;
-            if p2.rd != 0 && reads(p2.rd) && !between {
+            if p2.rd != 0 && reads(p2.rd) && !between && !prev_held {
                 match p2.class {
-                    Class::Load => m.load_use2 += 1,
-                    Class::Mul => m.mul_use2 += 1,
+                    Class::Load => {
+                        m.load_use2 += 1;
+                        waits = true;
+                    }
+                    Class::Mul => {
+                        m.mul_use2 += 1;
+                        waits = true;
+                    }
                     _ => {}
                 }
             }
@@ -373,6 +393,11 @@ pub fn mix(records: &[Retire]) -> Mix {
         }
         prev2 = prev;
         prev = Some(d);
+        let flow = matches!(
+            d.class,
+            Class::Branch { .. } | Class::Jal { .. } | Class::Jalr { .. }
+        );
+        prev_held = waits || (flow && r.pc_wdata != next_seq) || d.divides;
     }
     m
 }
@@ -576,6 +601,30 @@ mod tests {
         assert_eq!(estimate(&early_load, &recs, 10).data, 1 + 1);
         // the four-stage design waits only for the word used at once
         assert_eq!(estimate(&Design::FOUR_STAGE, &recs, 10).data, 1);
+    }
+
+    #[test]
+    fn two_after_counts_only_behind_an_instruction_that_ran_through() {
+        let recs = [
+            straight(0, isa::lw(A3, SP, 0)),
+            straight(4, isa::lw(A0, SP, 4)),
+            straight(8, isa::addi(A1, A3, 1)), // two after the first load: waits
+            straight(12, isa::addi(A2, A0, 1)), // two after the second, but behind a wait
+            straight(16, isa::mul(A4, A1, A2)),
+            straight(20, isa::addi(A5, A3, 1)),
+            straight(24, isa::addi(S0, A4, 1)), // two after the product
+            straight(28, isa::div(S1, A5, A5)),
+            straight(32, isa::lw(T0, SP, 8)),
+            straight(36, isa::addi(T1, ZERO, 1)),
+            straight(40, isa::addi(T2, T0, 1)), // two after the load, the one between ran
+        ];
+        let m = mix(&recs);
+        assert_eq!(
+            (m.load_use, m.load_use2, m.mul_use, m.mul_use2),
+            (0, 2, 0, 1)
+        );
+        let [six, ..] = Design::six_stage();
+        assert_eq!(estimate(&six, &recs, 11).data, 2 + 1);
     }
 
     #[test]
