@@ -341,15 +341,16 @@ pub fn mix(records: &[Retire]) -> Mix {
         let next_seq = r.pc_rdata.wrapping_add(len);
         let reads = |reg: u8| d.rs1 == Some(reg) || d.rs2 == Some(reg);
         let mut waits = false;
-        if let Some(p) = prev {
-            if p.rd != 0 && reads(p.rd) {
-                match p.class {
-                    Class::Load => m.load_use += 1,
-                    Class::Mul => m.mul_use += 1,
-                    _ if p.late => m.late_use += 1,
-                    _ => {}
-                }
-                waits = matches!(p.class, Class::Load | Class::Mul) || p.late;
+        if let Some(p) = prev.filter(|p| p.rd != 0 && reads(p.rd)) {
+            let count = match p.class {
+                Class::Load => Some(&mut m.load_use),
+                Class::Mul => Some(&mut m.mul_use),
+                _ if p.late => Some(&mut m.late_use),
+                _ => None,
+            };
+            if let Some(n) = count {
+                *n += 1;
+                waits = true;
             }
         }
         if let (Some(p2), Some(p)) = (prev2, prev) {
@@ -357,16 +358,14 @@ pub fn mix(records: &[Retire]) -> Mix {
             // wrote it again, and ran through
             let between = p.rs1 == Some(p2.rd) || p.rs2 == Some(p2.rd) || p.rd == p2.rd;
             if p2.rd != 0 && reads(p2.rd) && !between && !prev_held {
-                match p2.class {
-                    Class::Load => {
-                        m.load_use2 += 1;
-                        waits = true;
-                    }
-                    Class::Mul => {
-                        m.mul_use2 += 1;
-                        waits = true;
-                    }
-                    _ => {}
+                let count = match p2.class {
+                    Class::Load => Some(&mut m.load_use2),
+                    Class::Mul => Some(&mut m.mul_use2),
+                    _ => None,
+                };
+                if let Some(n) = count {
+                    *n += 1;
+                    waits = true;
                 }
             }
         }
