@@ -8,6 +8,7 @@ use std::process::Command;
 const RTL: &[&str] = &[
     "rtl/soc.v",
     "rtl/soc_ram.v",
+    "rtl/rv_expand.v",
     "rtl/rv_core.v",
     "rtl/rv_pipe.v",
     "rtl/uart16550.v",

@@ -29,6 +29,55 @@ pub enum Design {
     /// The vision unit alone, its bus and camera port driven from flip-flops (`vision_top.v`),
     /// with the run buffers of the board's SoC.
     Vision,
+    /// A timing probe: one pipeline stage of a planned core alone between flip-flops
+    /// (`fpga/probe/`, docs/fpga.md), fed by an LFSR.
+    Probe(Stage),
+}
+
+/// The pipeline stages the timing probes hold (`verilator-tb/fpga/probe/<stage>_stage.v`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Stage {
+    /// Next fetch address from the fetched word's length, a branch target buffer and a
+    /// registered redirect, into the memories' address pins.
+    Fetch,
+    /// Compressed expansion, register-file read, forwarding decisions and the class flags.
+    Decode,
+    /// Forwarded operands, adder, comparisons, logic unit, shifter, result selection.
+    Execute,
+}
+
+impl Stage {
+    /// Every probe, in pipeline order.
+    pub const ALL: [Stage; 3] = [Stage::Fetch, Stage::Decode, Stage::Execute];
+
+    /// The name used on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Fetch => "fetch",
+            Stage::Decode => "decode",
+            Stage::Execute => "execute",
+        }
+    }
+
+    /// The probe's top module (and, with `.v`, its file in `fpga/probe/`).
+    pub fn top(self) -> &'static str {
+        match self {
+            Stage::Fetch => "fetch_stage",
+            Stage::Decode => "decode_stage",
+            Stage::Execute => "execute_stage",
+        }
+    }
+}
+
+impl std::str::FromStr for Stage {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Stage::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| format!("unknown stage `{s}` (expected fetch, decode or execute)"))
+    }
 }
 
 impl Board {
@@ -119,6 +168,7 @@ impl Board {
             (Board::Hx8k, Design::Soc) => "top_hx8k",
             (_, Design::Core) => "core_top",
             (_, Design::Vision) => "vision_top",
+            (_, Design::Probe(stage)) => stage.top(),
         }
     }
 
@@ -126,9 +176,9 @@ impl Board {
         match (self, design) {
             (Board::Up5k, Design::Soc) => "icebreaker.pcf",
             (Board::Hx8k, Design::Soc) => "hx8k.pcf",
-            // the unit alone has the core alone's pins
-            (Board::Up5k, Design::Core | Design::Vision) => "core_up5k.pcf",
-            (Board::Hx8k, Design::Core | Design::Vision) => "core_hx8k.pcf",
+            // the unit alone and the probes have the core alone's pins
+            (Board::Up5k, Design::Core | Design::Vision | Design::Probe(_)) => "core_up5k.pcf",
+            (Board::Hx8k, Design::Core | Design::Vision | Design::Probe(_)) => "core_hx8k.pcf",
         }
     }
 }
@@ -161,6 +211,9 @@ impl Design {
             Design::Soc => "soc",
             Design::Core => "core",
             Design::Vision => "vision",
+            Design::Probe(Stage::Fetch) => "probe-fetch",
+            Design::Probe(Stage::Decode) => "probe-decode",
+            Design::Probe(Stage::Execute) => "probe-execute",
         }
     }
 }
@@ -214,7 +267,7 @@ impl Target {
     pub fn clock_mhz(&self) -> f64 {
         match self.design {
             Design::Soc => SOC_CLOCK_MHZ / f64::from(1u32 << self.clock_div_log2.min(16)),
-            Design::Core | Design::Vision => SOC_CLOCK_MHZ,
+            Design::Core | Design::Vision | Design::Probe(_) => SOC_CLOCK_MHZ,
         }
     }
 
@@ -254,8 +307,18 @@ impl Target {
         let rtl = |f: &str| sources.rtl.join(f);
         let fpga = |f: &str| sources.fpga.join(f);
         match self.design {
-            Design::Core => vec![rtl("rv_core.v"), rtl("rv_pipe.v"), fpga("core_top.v")],
+            Design::Core => vec![
+                rtl("rv_expand.v"),
+                rtl("rv_core.v"),
+                rtl("rv_pipe.v"),
+                fpga("core_top.v"),
+            ],
             Design::Vision => vec![rtl("vision_unit.v"), fpga("vision_top.v")],
+            // (the decode stage expands with the cores' own module)
+            Design::Probe(stage) => vec![
+                rtl("rv_expand.v"),
+                fpga(&format!("probe/{}.v", stage.top())),
+            ],
             Design::Soc => {
                 let ram = match self.board {
                     Board::Up5k => fpga("soc_ram_spram.v"),
@@ -264,6 +327,7 @@ impl Target {
                 let mut files = vec![
                     rtl("soc.v"),
                     ram,
+                    rtl("rv_expand.v"),
                     rtl("rv_core.v"),
                     rtl("rv_pipe.v"),
                     rtl("uart16550.v"),

@@ -234,7 +234,7 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
     let timing = Timing::from_report(&report);
     let clock = match target.design {
         Design::Soc => timing.find_clock(&["soc_clk", "clk_pll"]),
-        Design::Core | Design::Vision => timing.find_clock(&["clk"]),
+        Design::Core | Design::Vision | Design::Probe(_) => timing.find_clock(&["clk"]),
     }
     .unwrap_or("")
     .to_owned();

@@ -17,7 +17,7 @@ pub mod demo;
 pub mod flow;
 pub mod report;
 
-pub use board::{Board, Design, Sources, Target, SOC_CLOCK_MHZ, SOC_CLOCK_NOMINAL_MHZ};
+pub use board::{Board, Design, Sources, Stage, Target, SOC_CLOCK_MHZ, SOC_CLOCK_NOMINAL_MHZ};
 pub use flow::{build, missing_tools, FlowError, Outcome, DEBIAN_PACKAGES};
 
 /// A few lines for people: utilization, Fmax against the clock, the bitstream.

@@ -230,13 +230,16 @@ pub fn utilization(report: &Value) -> BTreeMap<String, Usage> {
 /// The `ICESTORM_LC: used/ available` line of a nextpnr log (also printed when the design
 /// does not fit and no report is written).
 pub fn logic_cells_from_log(log: &str) -> Option<Usage> {
-    let line = log.lines().rev().find(|l| l.contains("ICESTORM_LC:"))?;
-    let rest = line.split("ICESTORM_LC:").nth(1)?;
-    let (used, rest) = rest.split_once('/')?;
-    let available = rest.split_whitespace().next()?;
-    Some(Usage {
-        used: used.trim().parse().ok()?,
-        available: available.trim().parse().ok()?,
+    // the last utilisation line (`ICESTORM_LC:  422/ 7680  5%`); the placer's progress lines
+    // name the cell type too (`type ICESTORM_LC: wirelen solved = ...`) and are skipped
+    log.lines().rev().find_map(|line| {
+        let rest = line.split("ICESTORM_LC:").nth(1)?;
+        let (used, rest) = rest.split_once('/')?;
+        let available = rest.split_whitespace().next()?;
+        Some(Usage {
+            used: used.trim().parse().ok()?,
+            available: available.trim().parse().ok()?,
+        })
     })
 }
 
@@ -315,6 +318,17 @@ mod tests {
             })
         );
         assert_eq!(logic_cells_from_log("nothing"), None);
+        // the placer's progress lines after it name the cell type as well
+        let placed = format!(
+            "{log}Info:     at iteration #1, type ICESTORM_LC: wirelen solved = 299, spread = 1775\n"
+        );
+        assert_eq!(
+            logic_cells_from_log(&placed),
+            Some(Usage {
+                used: 8041,
+                available: 7680
+            })
+        );
     }
 
     #[test]

@@ -82,6 +82,7 @@ fn run_board(board: Board) {
         }
     }
     for f in [
+        "rv_expand.v",
         "rv_core.v",
         "rv_pipe.v",
         "uart16550.v",

@@ -81,6 +81,8 @@ pub enum Bench {
     Sweep,
     /// The SoC and the core on the iCE40 boards: utilization and Fmax.
     Fpga,
+    /// The planned core's pipeline stages alone on the iCE40 boards (timing probes).
+    Probes,
     /// The vision unit against the firmware's pixel pipeline: cycles per frame, frames per
     /// second and processor share at 14.7456 MHz; the unit's LUT4 and Fmax.
     VisionUnit,
@@ -89,7 +91,7 @@ pub enum Bench {
 }
 
 impl Bench {
-    const ALL: [Bench; 12] = [
+    const ALL: [Bench; 13] = [
         Bench::Size,
         Bench::FwDecode,
         Bench::HostDecode,
@@ -100,6 +102,7 @@ impl Bench {
         Bench::Softcore,
         Bench::Sweep,
         Bench::Fpga,
+        Bench::Probes,
         Bench::VisionUnit,
         Bench::Lockstep,
     ];
@@ -116,6 +119,7 @@ impl Bench {
             Bench::Softcore => "soft core",
             Bench::Sweep => "sweeps",
             Bench::Fpga => "the soft core on iCE40 FPGAs",
+            Bench::Probes => "the planned core's stages on iCE40 FPGAs",
             Bench::VisionUnit => "the vision unit",
             Bench::Lockstep => "lockstep with the golden model",
         }
@@ -143,6 +147,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             Bench::Softcore => softcore(),
             Bench::Sweep => sweep(),
             Bench::Fpga => crate::bench_fpga::fpga(),
+            Bench::Probes => crate::bench_fpga::probes(),
             Bench::VisionUnit => crate::bench_vision::vision_unit(),
             Bench::Lockstep => crate::bench_fpga::lockstep(),
         };
@@ -666,7 +671,7 @@ fn run_captured(cmd: &mut Command, what: &str, any_status: bool) -> Result<Strin
 
 /// The yosys script of the area figure, run in `verilator-tb/`.
 const SOFTCORE_AREA_SCRIPT: &str =
-    "read_verilog rtl/rv_core.v rtl/synth_top.v; synth_ice40 -dsp -top synth_top; stat";
+    "read_verilog rtl/rv_expand.v rtl/rv_core.v rtl/synth_top.v; synth_ice40 -dsp -top synth_top; stat";
 
 /// Cell counts of `yosys ... synth_ice40 -dsp; stat` on the core (`rtl/synth_top.v`).
 fn softcore_area() -> Result<BTreeMap<String, u64>> {

@@ -10,7 +10,7 @@
 use std::fmt::Write as _;
 
 use anyhow::{Context, Result};
-use fpga::{Board, Design, Outcome, Sources, Target};
+use fpga::{Board, Design, Outcome, Sources, Stage, Target};
 
 use crate::bench::{field, figures, ignored_test_named, verdict};
 
@@ -61,6 +61,7 @@ fn row(o: &Outcome) -> String {
                 "vision unit ({} words a buffer)",
                 1u32 << t.board.vision_cap_aw()
             ),
+            (Design::Probe(stage), _) => format!("{} stage (probe)", stage.name()),
         },
         t.seed,
         o.cells.lut4,
@@ -194,6 +195,74 @@ pub fn fpga() -> Result<String> {
     let _ = write!(
         md,
         "\nReproduce: `cargo xtask bench --only fpga`; one build: `cargo xtask fpga --board up5k --seed 1` (`--core` for the core alone, `--vision` for the vision unit alone, `--clock-div 2` for the bring-up clock). Outputs, logs and reports in `target/fpga/`."
+    );
+    Ok(md)
+}
+
+/// Places and routes each timing probe (a pipeline stage of the planned core alone between
+/// flip-flops) on both boards and holds its Fmax against the SoC's goal.
+pub fn probes() -> Result<String> {
+    crate::install::ensure_fpga_tools()?;
+    let out = crate::fpga::out_dir().join("bench");
+    let sources = Sources::in_workspace();
+    let mut md = String::from(
+        "## The planned core's stages on iCE40 FPGAs
+
+",
+    );
+    md.push_str(
+        "Each pipeline stage of the six-stage core that docs/fpga.md plans, alone between flip-flops and fed by an LFSR (`verilator-tb/fpga/probe/`), through the SoC's flow (`synth_ice40 -abc9`, `-dsp` on UP5K; nextpnr-ice40, three placer seeds). A stage holds the SoC's Fmax goal when its worst seed does; what the goal leaves over is what the stage's share of the rest of the core (its control, the fuller part) may take.\n\n",
+    );
+    md.push_str(
+        "| stage | board | LUT4 | FF | carry | RAM | logic cells | Fmax by seed (MHz) | goal (MHz) | worst seed's margin |\n|---|---|---:|---:|---:|---:|---|---|---:|---|\n",
+    );
+    for stage in Stage::ALL {
+        for board in Board::ALL {
+            let mut fmax = Vec::new();
+            let mut first: Option<Outcome> = None;
+            for seed in SEEDS {
+                let t = Target {
+                    board,
+                    design: Design::Probe(stage),
+                    seed,
+                    clock_div_log2: 0,
+                    vision_unit: false,
+                };
+                println!("placing and routing {}", t.dir_name());
+                let o = fpga::build(&t, &sources, &out).with_context(|| t.dir_name())?;
+                print!("{}", fpga::summary(&o));
+                fmax.push(o.fmax_mhz());
+                first.get_or_insert(o);
+            }
+            let o = first.context("no seeds")?;
+            let worst = fmax.iter().flatten().copied().fold(f64::NAN, f64::min);
+            let seeds: Vec<String> = fmax
+                .iter()
+                .map(|f| f.map_or("not placed".into(), |f| format!("{f:.2}")))
+                .collect();
+            let placed = fmax.iter().all(Option::is_some);
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                stage.name(),
+                board.name(),
+                o.cells.lut4,
+                o.cells.ff,
+                o.cells.carry,
+                o.cells.ram,
+                o.logic_cells.map_or("?".into(), |u| u.describe()),
+                seeds.join(" / "),
+                goal(board),
+                if placed {
+                    format!("{:+.0} %", (worst / goal(board) - 1.0) * 100.0)
+                } else {
+                    "**not placed**".into()
+                }
+            );
+        }
+    }
+    md.push_str(
+        "\nReproduce: `cargo xtask bench --only probes`; one: `cargo xtask fpga --board hx8k --probe fetch --seed 1`. Outputs in `target/fpga/bench/`.\n",
     );
     Ok(md)
 }

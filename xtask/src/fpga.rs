@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use fpga::{Board, Design, Sources, Target};
+use fpga::{Board, Design, Sources, Stage, Target};
 
 use crate::{install, stage, workspace_root};
 
@@ -31,6 +31,10 @@ pub struct FpgaArgs {
     /// Build the SoC with its vision unit (the UP5K SoC does not fit with it).
     #[arg(long, conflicts_with = "core")]
     vision_unit: bool,
+    /// Build a timing probe instead of the SoC: one pipeline stage of the planned core alone
+    /// between flip-flops (fetch, decode or execute; docs/fpga.md).
+    #[arg(long, value_name = "STAGE", conflicts_with_all = ["core", "vision", "vision_unit"])]
+    probe: Option<Stage>,
 }
 
 fn parse_board(s: &str) -> Result<Board, String> {
@@ -52,7 +56,9 @@ pub fn run(args: FpgaArgs) -> Result<()> {
     for board in boards {
         let target = Target {
             board,
-            design: if args.core {
+            design: if let Some(stage) = args.probe {
+                Design::Probe(stage)
+            } else if args.core {
                 Design::Core
             } else if args.vision {
                 Design::Vision

@@ -10,7 +10,7 @@
 module execute_stage (
     input  wire clk,
     input  wire seed,
-    output wire out
+    output wire out0
 );
     reg [31:0] lfsr = 32'h1;
     always @(posedge clk) lfsr <= {lfsr[30:0], lfsr[31] ^ lfsr[21] ^ lfsr[1] ^ lfsr[0] ^ seed};
@@ -64,7 +64,7 @@ module execute_stage (
         target_q <= target;
         addr_q   <= sum;
     end
-    assign out = ^{m_res, w_res, redirect, target_q, addr_q};
+    assign out0 = ^{m_res, w_res, redirect, target_q, addr_q};
 endmodule
 
 `default_nettype wire

@@ -128,7 +128,8 @@ fn print_pipeline(records: &[Retire], awake: u64) {
     );
     let designs = pipeline::Design::candidates()
         .into_iter()
-        .chain(pipeline::Design::six_stage());
+        .chain(pipeline::Design::six_stage())
+        .chain(pipeline::Design::front_end_steps());
     for d in designs {
         let e = pipeline::estimate(&d, records, awake);
         println!(
