@@ -1,8 +1,7 @@
 // The core alone on an FPGA, for its area and clock figures: its buses end in flip-flops
 // clocked like the SoC's memories and devices (falling edge: the addresses are captured and
 // the read data leaves; rising edge: write data, strobes and read strobes are captured; the
-// pipelined core's data word leaves at the rising edge, from `dmem_next`, and its fetched
-// word from its next fetch address), fed
+// pipelined core's data word leaves at the rising edge, from `dmem_next`), fed
 // by a 32-bit LFSR so nothing is constant, and folded into two output pins so nothing is
 // removed. The RVFI port is left open (removed).
 `default_nettype none
@@ -29,7 +28,6 @@ module core_top #(
     reg [2:0]  irq;
     wire [31:0] imem_addr, dmem_addr, dmem_wdata, dmem_next;
     reg  [31:0] d_next_q, d_data_e;
-    reg  [31:0] i_data_e;    // the pipelined core's fetch: read at the rising edge
     wire [3:0]  dmem_rmask, dmem_wstrb;
     wire        dmem_re, dmem_rd_pre;
     wire [13:0] st_word;
@@ -47,7 +45,6 @@ module core_top #(
     always @(posedge clk) begin
         d_next_q <= dmem_next;
         d_data_e <= {lfsr[7:0], lfsr[31:8]} ^ d_next_q;
-        i_data_e <= {lfsr[15:8], lfsr[31:16], lfsr[7:0]} ^ imem_addr;
         irq <= lfsr[31:29];
         d_wdata_q <= dmem_wdata ^ st_data;
         d_rmask_q <= dmem_rmask ^ st_mask;
@@ -60,7 +57,7 @@ module core_top #(
         if (PIPE != 0) begin : g_pipe
             rv_pipe #(.FETCH_AW(14), .MUL_SEQ(MUL_SEQ)) core (
                 .clk(clk), .rst(rst),
-                .imem_addr(imem_addr), .imem_rdata(i_data_e),
+                .imem_addr(imem_addr), .imem_rdata(i_data),
                 .dmem_addr(dmem_addr), .dmem_next(dmem_next), .dmem_re(dmem_re),
                 .dmem_rmask(dmem_rmask),
                 .dmem_wstrb(dmem_wstrb), .dmem_wdata(dmem_wdata), .dmem_rdata(d_data_e),

@@ -1,21 +1,18 @@
 // RV32IMAC + Zcb + Zicsr machine-mode core, pipelined: the FPGA core variant (`docs/fpga.md`).
 //
 // Four stages, one instruction each:
-//   F  fetch: the instruction memory (the SoC's RAM, which reads the 32 bits at any halfword
-//      address) and the branch target buffer are read at the edge that begins the stage
-//      from the next fetch address (`imem_addr`), which the stage works out from the word
-//      (its length), the buffer's guess and a redirect from X a cycle earlier (`r_go`); the
-//      word is captured into D.
+//   F  fetch: `f_pc` addresses the instruction memory (the SoC's RAM answers with the 32 bits
+//      at any halfword address in the same cycle); the word is captured into D.
 //   D  decode: a compressed instruction is expanded, the immediate and the instruction's
 //      class decoded (X takes the flags registered, `xd`), and the register file (block RAM,
 //      synchronous read) read at the clock edge that ends the stage; whether X will forward
 //      M's result is decided here too (`fwd_a`, `fwd_b`).
 //   X  execute: operands forwarded from M or from the word written at the edge that began the
-//      cycle; ALU, branches and jumps (resolved here: when the fetch behind one went where it
-//      does not, the instructions fetched behind it are discarded and the fetch goes on from
-//      the right address a cycle later; three cycles lost), CSRs (all in flip-flops), traps
-//      and interrupts (taken here, between instructions), the multiplier, the iterative
-//      divider (the pipeline waits), load and store addresses.
+//      cycle; ALU, branches and jumps (resolved here: the instructions fetched behind a taken
+//      one are discarded; a JAL's target, and a backward branch's, were already fetched from
+//      D, see `d_guess`), CSRs (all in flip-flops), traps and interrupts (taken here, between
+//      instructions), the multiplier, the iterative divider (the pipeline waits), load and
+//      store addresses.
 //   M  memory and write-back: the data bus is driven from M's registers; the SoC's memories
 //      read the word at the edge that begins the stage, from X's address (`dmem_next`), so
 //      the word is there early in the cycle; a loaded word is aligned and written back at the
@@ -23,16 +20,14 @@
 //      two cycles here (the second uses the word the first loaded). Every instruction retires
 //      in M, in order, with its RVFI record (registered: valid in the cycle after).
 // An instruction in X that reads the word an instruction in M loads waits one cycle. A store
-// into an instruction already fetched (F, D or X) discards those and fetches them again, and
-// a fetched word read at the edge a store landed (which may predate it) is read again, so a
+// into an instruction already fetched (F, D or X) discards those and fetches them again, so a
 // program sees its own stores as the golden model does. The interrupt lines are registered
 // at the input (an interrupt is seen one cycle later); the CSRs, mcycle and minstret are
 // flip-flops (`rv_core` keeps the wide ones in its register file's block RAM).
 //
 // Same ports as `rv_core` and one more, `dmem_next`: the SoC's data memories read at the
-// rising edge from it (`rv_core`'s read on the falling edge from `dmem_addr`), and the fetch
-// port at the rising edge from `imem_addr`, the next fetch address (`rv_core`'s on the
-// falling edge from its present one). Its cycles differ from the cycle-accurate model's, its
+// rising edge from it (`rv_core`'s read on the falling edge from `dmem_addr`; the fetch port
+// reads on the falling edge for both). Its cycles differ from the cycle-accurate model's, its
 // retirements do not.
 `default_nettype none
 
@@ -43,9 +38,9 @@ module rv_pipe #(
     // 0: MUL* in one cycle on a 32x32 multiplier; 1: in the divider's loop (11 cycles, 7 when
     // rs1 has at most 16 significant bits)
     parameter integer MUL_SEQ = 0,
-    // a branch target buffer of 2^BTB_AW entries at fetch, indexed by the pc's halfword
-    // (two block RAMs at 8 on the HX8K)
-    parameter integer BTB_AW = 8
+    // conditional branches guessed in D from a table of 2^BHT_AW two-bit counters indexed by
+    // the pc's halfword (one block RAM at 11); 0: backward ones taken, forward ones not
+    parameter integer BHT_AW = 11
 ) (
     input  wire        clk,
     input  wire        rst,
@@ -99,10 +94,7 @@ module rv_pipe #(
     reg        d_valid;
     reg [31:0] d_pc;
     reg [31:0] d_word;
-    reg        d_pred;    // the fetch behind it went to the buffer's target (`d_ptgt`)
-    reg        d_hit;     // the buffer has an entry for its pc (`d_ctr`)
-    reg [1:0]  d_ctr;
-    reg [31:0] d_ptgt;
+    reg [1:0]  d_bht;     // the counter of D's pc, read as the word was fetched
     // X
     reg        x_valid;
     reg [31:0] x_pc;
@@ -110,10 +102,8 @@ module rv_pipe #(
     reg        x_c;       // compressed (2 bytes)
     reg [31:0] x_imm;
     reg [31:0] x_raw;     // as fetched, for RVFI
-    reg        x_pred, x_hit;   // as D's
-    reg [1:0]  x_ctr;
-    reg [31:0] x_ptgt;
-    reg        x_tok;     // the buffer's target is the JAL's or branch's own (checked in D)
+    reg        x_jd;      // the fetch already went to the target from D (JAL, branch guessed)
+    reg [1:0]  x_bht;     // the branch's counter as read for its guess
     reg [31:0] rf_a, rf_b;
     reg        byp_a, byp_b;
     reg [31:0] byp_val;
@@ -158,30 +148,17 @@ module rv_pipe #(
     reg [31:0] md_quo, md_rem, md_div;
     reg [33:0] md_div3;    // 3 x md_div (MUL_SEQ: the product takes four bits a cycle)
     reg        md_sq;      // the result's sign fix-up (negate), from the operands at the start
-    // The branch target buffer: per halfword address (its low BTB_AW bits) the last branch or
-    // jump there, as {valid, the address's next bits (tag), its target's halfword address in
-    // the fetch memory, a two-bit counter}; a conditional branch is guessed taken from 2 on,
-    // jumps are written with 3. Read with the program memory from the next fetch address,
-    // written a cycle after the branch or jump leaves X (taken ones, and not-taken ones that
-    // have an entry). An entry only steers a fetch that D (the target of a JAL or branch) or X
-    // (the outcome, a JALR's target) checks, so a stale, aliased or colliding read can only
-    // cost cycles, never change what the program does.
-    localparam integer HW = FETCH_AW + 1;          // halfword-address bits of the fetch memory
-    localparam integer TAG_W = HW - BTB_AW;
-    localparam integer BE = 1 + TAG_W + HW + 2;
-    localparam integer BTB_N = 1 << BTB_AW;
-    reg [BE-1:0] btb [0:BTB_N-1];
-    initial for (k = 0; k < BTB_N; k = k + 1) btb[k] = {BE{1'b0}};
-    reg [BE-1:0] q_btb;   // the entry of f_pc
-    reg          u_we;
-    reg [BTB_AW-1:0] u_idx;
-    reg [BE-1:0] u_val;
-    // the redirect, a cycle after X decides it: the fetch goes to r_pc
-    reg        r_go;
-    reg [31:0] r_pc;
-    // a store landed at the edge that began the cycle (the word F holds may predate it)
-    reg        st_q;
-    reg [FETCH_AW-1:0] st_pw;
+    // branch history: per halfword address a two-bit counter of how often the branch went
+    // against the static guess (backward taken, forward not); guessed against it from 2 on.
+    // Read as an instruction is fetched, updated a cycle after its branch leaves X. A counter
+    // only steers a guess that X checks, so a read of the entry being written (the block
+    // RAM's collision) can only cost a cycle, never change what the program does.
+    localparam integer BHT_N = BHT_AW > 0 ? 1 << BHT_AW : 1;
+    reg [1:0]  bht [0:BHT_N-1];
+    initial for (k = 0; k < BHT_N; k = k + 1) bht[k] = 2'd0;
+    reg        u_we;
+    reg [BHT_AW > 0 ? BHT_AW - 1 : 0:0] u_idx;
+    reg [1:0]  u_val;
     // the last store into the fetch memory (for RAMs with a write buffer)
     reg [FETCH_AW-1:0] st_w;
     reg [3:0]  st_m;
@@ -384,9 +361,8 @@ module rv_pipe #(
     wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
     wire [31:0] ng_in  = is_div ? md_res : prod_u[63:32];
     // an iterative result's sign fix-up as latched at its start (md_sq), off the operands'
-    // forwarding; a one-cycle product's from the operands (with MUL_SEQ every product is
-    // iterative: the operands' signs then reach no result but through md_sq)
-    wire        ng     = MUL_SEQ != 0 || is_iter ? md_sq : prod_neg;
+    // forwarding; a one-cycle product's from the operands
+    wire        ng     = is_iter ? md_sq : prod_neg;
     wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, ng && (is_div || lo_zero)};
     wire [31:0] mul_out = MUL_SEQ != 0 && is_shift ? sh_out :
                           use_lo && !is_div ? prod_u[31:0] : ng_out;
@@ -503,22 +479,19 @@ module rv_pipe #(
     wire x_trap    = irq_take || (x_exc && m_free);   // an exception's record needs M
     wire [31:0] trap_vec = {mtvec[31:6],
                             mtvec[5:2] | (irq_take && mtvec[0] ? irq_cause : 4'd0), 2'b00};
-    // The fetch follows X a cycle after X finds it went wrong (a branch or jump the buffer
-    // did not guess, or guessed wrong; an MRET), a store into a fetched instruction, or a
-    // trap, whose CSRs are written in that cycle too (`trap_q`).
+    // The fetch follows X in the cycle X resolves control flow: a jump the fetch did not take
+    // from D, a backward branch it took that is not taken, an MRET (never an exception); a
+    // store into a fetched instruction. A trap discards D and X at once but sends the fetch
+    // to its handler in the next cycle (`trap_q`), and its CSRs are written then: so whether
+    // an access is misaligned does not steer the fetch address or wide registers' enables.
     reg         trap_q;
-    // Whether the fetch behind X went wrong, for each outcome of a conditional branch (the
-    // comparison picks last): it
-    // went to `x_ptgt` when the buffer guessed (`x_pred`), to the next instruction when not.
-    // A JAL's or branch's target was checked in D (`x_tok`), a JALR's is checked here.
-    wire jalr_ok = sum[31:1] == x_ptgt[31:1];
-    wire j_ok = x_pred && (is_jalr ? jalr_ok : x_tok);
-    wire mis_t = x_done && (is_mret || ((jump_nb | is_branch) ? !j_ok : x_pred));
-    wire mis_n = x_done && (is_mret || (jump_nb ? !j_ok : x_pred));
-    wire mis = br_taken ? mis_t : mis_n;
-    // D and X (and F's word) are discarded at once; the fetch follows from `r_pc` a cycle
-    // later (`r_go`), so no outcome of X steers the fetch address in the same cycle
-    wire redirect = mis || smc || x_trap;
+    reg  [31:0] trap_pc_q;
+    // Both outcomes of a conditional branch are worked out (`_t`: taken, `_n`: not) and the
+    // comparison picks last, so its carry chain ends one selection before the fetch address.
+    wire rf_t = smc || trap_q || (x_done && (((jump_nb | is_branch) ^ x_jd) || is_mret));
+    wire rf_n = smc || trap_q || (x_done && ((jump_nb ^ x_jd) || is_mret));
+    wire redirect_f = br_taken ? rf_t : rf_n;
+    wire redirect = redirect_f || x_trap;
 
     // X result (everything but loaded words)
     wire t_sum   = is_lui || is_auipc || ((is_opimm || is_op) && f3 == 3'd0);
@@ -552,43 +525,38 @@ module rv_pipe #(
                     (x_live && (irq_take || (exc_fixed ? m_free : !x_stall)));
     wire d_to_x   = d_valid && x_leaves && !redirect;
     wire d_open   = !d_valid || x_leaves;     // D may take F's word (unless redirected)
-    // ... as the fetch address sees it: without the store check, since after a store into a
-    // fetched instruction the fetch starts again from `r_pc` whatever F chose
-    wire irq_ns   = x_valid && mstatus_mie && irq_pend != 3'd0 && !md_busy && !is_wfi;
-    wire d_open_f = !d_valid || !x_valid ||
-                    (!rst && (irq_ns || (exc_fixed ? m_free : !x_stall)));
-    // F's word goes to D (unless redirected): not behind a redirect, not stale
-    wire f_good   = !r_go && !f_stale;
-    // The target of a JAL or branch from its fetched bits, checked against the buffer's guess
-    // (`x_tok`): an aliased or stale entry costs a redirect from X.
+    // JAL, C.J and C.JAL, and conditional branches guessed taken (backwards ones, loops,
+    // unless their counter says otherwise; forward ones when it does), send the fetch to
+    // their target as they leave D, from the fetched bits (not the expansion) so the sum
+    // starts early: the word fetched behind them is discarded, one cycle instead of the two
+    // of a jump resolved in X. X redirects a guessed branch that is not taken to the
+    // instruction after it (two cycles).
+    wire        d_is_jal = fi_c ? f_j : fr[6:0] == 7'b1101111;
+    wire        d_is_br  = fi_c ? f_b : fr[6:0] == 7'b1100011;
+    wire        d_back   = fi_c ? c[12] : fr[31];   // the offset's sign
     wire [31:0] d_jimm = fi_c ?
         (f_b ? {{24{c[12]}}, c[6:5], c[2], c[11:10], c[4:3], 1'b0} :
                {{21{c[12]}}, c[8], c[10:9], c[6], c[7], c[2], c[11], c[5:3], 1'b0}) :
         (fr[3] ? {{11{fr[31]}}, fr[31], fr[19:12], fr[20], fr[30:21], 1'b0} :
                  {{19{fr[31]}}, fr[31], fr[7], fr[30:25], fr[11:8], 1'b0});
     wire [31:0] d_target = d_pc + d_jimm;
-    wire        d_tok    = d_target[31:1] == d_ptgt[31:1];
-
-    // F: the program memory answers with the word at f_pc, read at the edge that began the
-    // cycle from the address the cycle before chose (`imem_addr`, the next fetch address),
-    // and the buffer with f_pc's entry. The next address: the redirect's, or f_pc again while
-    // D cannot take the word (or the word may predate the store of the edge before), or the
-    // buffer's target when it guesses taken, or the next instruction's.
-    wire [HW-1:0]     f_h     = f_pc[HW:1];
-    wire              b_valid = q_btb[BE-1];
-    wire [TAG_W-1:0]  b_tag   = q_btb[BE-2:HW+2];
-    wire [HW-1:0]     b_tgt   = q_btb[HW+1:2];
-    wire [1:0]        b_ctr   = q_btb[1:0];
-    wire              f_hit   = b_valid && b_tag == f_h[HW-1:BTB_AW];
-    wire              f_pred  = f_hit && b_ctr[1];
-    wire [31:0]       b_pc    = {FETCH_REGION, 20'd0} | {{(31 - HW){1'b0}}, b_tgt, 1'b0};
-    wire [31:0]       f_seq   = imem_rdata[1:0] == 2'b11 ? f_pc + 32'd4 : f_pc + 32'd2;
-    wire              f_stale = st_q && f_pc[31:20] == FETCH_REGION &&
-                                (f_pc[FETCH_AW+1:2] == st_w || f_pc[FETCH_AW+1:2] == st_pw);
-    wire              f_hold  = !d_open_f || f_stale;
-    wire [31:0]       n_pc    = rst ? RESET_PC : r_go ? r_pc : f_hold ? f_pc :
-                                f_pred ? b_pc : f_seq;
-    assign imem_addr = n_pc;
+    wire        d_guess  = d_is_jal || (d_is_br && (d_back ^ (BHT_AW > 0 && d_bht[1])));
+    // the fetch's next address for each outcome in X (a trap's redirect comes a cycle later)
+    wire        go_t = d_valid && x_leaves && !rf_t, go_n = d_valid && x_leaves && !rf_n;
+    wire [31:0] rpc_t = trap_q ? trap_pc_q : smc ? smc_pc : next_t;
+    wire [31:0] rpc_n = trap_q ? trap_pc_q : smc ? smc_pc : next_n;
+    // the next fetch address: both sums from the register, the fetched word picks one
+    wire [31:0] f_pc2 = f_pc + 32'd2, f_pc4 = f_pc + 32'd4;
+    wire [31:0] f_next = imem_rdata[1:0] == 2'b11 ? f_pc4 : f_pc2;
+    assign imem_addr = f_pc;
+    // f_pc's next value: f_next (chosen by the fetched word, which comes half a cycle late:
+    // last) or another (chosen by the branch's outcome, which comes late too)
+    wire        sel_t = !rf_t && !(go_t && d_guess) && (!d_valid || go_t);
+    wire        sel_n = !rf_n && !(go_n && d_guess) && (!d_valid || go_n);
+    wire [31:0] oth_t = rf_t ? rpc_t : (go_t && d_guess) ? d_target : f_pc;
+    wire [31:0] oth_n = rf_n ? rpc_n : (go_n && d_guess) ? d_target : f_pc;
+    wire        f_sel = br_taken ? sel_t : sel_n;
+    wire [31:0] f_oth = br_taken ? oth_t : oth_n;
 
     // register-file read ports: the instruction entering X, or X's again while it stays
     wire       x_stays = x_valid && !x_leaves;
@@ -654,18 +622,18 @@ module rv_pipe #(
     end
 
     always @(posedge clk) begin
-        if (u_we) btb[u_idx] <= u_val;
-        q_btb <= btb[n_pc[BTB_AW:1]];
-        f_pc <= n_pc;
+        if (BHT_AW > 0) begin
+            if (u_we) bht[u_idx] <= u_val;
+            if (d_open) d_bht <= bht[f_pc[BHT_AW > 0 ? BHT_AW : 1:1]];
+        end
     end
 
     always @(posedge clk) begin
         rvfi_valid <= 1'b0;
         mcycle <= mcycle + 64'd1;
         if (rst) begin
+            f_pc <= RESET_PC;
             d_valid <= 1'b0;
-            r_go <= 1'b0;
-            st_q <= 1'b0;
             x_valid <= 1'b0;
             m_valid <= 1'b0;
             mstatus_mie <= 1'b0;
@@ -693,31 +661,20 @@ module rv_pipe #(
             u_we <= 1'b0;
         end else begin
             // ---------------------------------------------------- F, D
-            r_go <= redirect;
-            r_pc <= x_trap ? trap_vec : smc ? smc_pc : next_pc;
-            st_q <= dmem_wstrb != 4'd0 && m_fetch;
-            st_pw <= st_prev;
+            f_pc <= f_sel ? f_next : f_oth;
             // D and X take their registers whenever they may take an instruction, without
             // waiting for X's branch outcome (a redirect only clears the valid bits): the
             // enables of these wide registers stay off the execute stage's longest path.
             if (d_open) begin
                 d_pc <= f_pc;
                 d_word <= imem_rdata;
-                d_pred <= f_pred;
-                d_hit <= f_hit;
-                d_ctr <= b_ctr;
-                d_ptgt <= b_pc;
             end
-            d_valid <= !redirect && (d_open ? f_good : d_valid);
-            // the buffer: a taken branch or jump is written (its counter up, a jump's 3, a
-            // new branch's 2), a branch not taken that has an entry counts down
-            u_we <= x_done && (is_branch || jump_nb) && (!is_branch || br_taken || x_hit);
-            u_idx <= x_pc[BTB_AW:1];
-            u_val <= {1'b1, x_pc[HW:BTB_AW + 1],
-                      (!is_branch || br_taken) ? sum[HW:1] : x_ptgt[HW:1],
-                      !is_branch ? 2'd3 :
-                      br_taken ? (x_hit ? x_ctr + {1'b0, x_ctr != 2'd3} : 2'd2) :
-                                 x_ctr - {1'b0, x_ctr != 2'd0}};
+            // the branch's counter: against the static guess once more, or once less
+            u_we <= x_done && is_branch;
+            u_idx <= x_pc[BHT_AW > 0 ? BHT_AW : 1:1];
+            u_val <= (br_taken ^ x_imm[31]) ? x_bht + {1'b0, x_bht != 2'd3} :
+                                              x_bht - {1'b0, x_bht != 2'd0};
+            d_valid <= !redirect && !(d_open && d_valid && d_guess);
 
             // ---------------------------------------------------- X
             if (x_leaves) begin
@@ -726,11 +683,8 @@ module rv_pipe #(
                 x_c <= fi_c;
                 x_imm <= fi_imm;
                 x_raw <= fi_raw;
-                x_pred <= d_pred;
-                x_hit <= d_hit;
-                x_ctr <= d_ctr;
-                x_ptgt <= d_ptgt;
-                x_tok <= d_tok;
+                x_jd <= d_guess;
+                x_bht <= d_bht;
                 xd <= d_dec;
                 x_valid <= d_to_x;
             end
@@ -771,6 +725,7 @@ module rv_pipe #(
 
             // a trap: the fetch and the CSRs in the next cycle (D and X are empty then)
             trap_q <= x_trap;
+            trap_pc_q <= trap_vec;
             t_int <= irq_take;
             t_code <= irq_take ? irq_cause : exc_cause;
             t_pc <= x_pc;

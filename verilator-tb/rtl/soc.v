@@ -150,13 +150,7 @@ module soc #(
     wire imem_in_ram = imem_addr[31:20] == 12'h800;
     reg  imem_in_ram_q;
     wire [31:0] ram_idata;
-    generate
-        if (PIPE != 0) begin : g_ifetch_early
-            always @(posedge clk) imem_in_ram_q <= imem_in_ram;
-        end else begin : g_ifetch_late
-            always @(negedge clk) imem_in_ram_q <= imem_in_ram;
-        end
-    endgenerate
+    always @(negedge clk) imem_in_ram_q <= imem_in_ram;
     assign imem_rdata = imem_in_ram_q ? ram_idata : 32'd0;
 
     // the devices an address selects: {vision, UART1, UART0, PLIC, CLINT, frame window, RAM}

@@ -12,9 +12,7 @@
 // EARLY = 1 (the pipelined core): the data port reads at the rising edge that begins the
 // cycle instead, the word `d_next` (the core's next data address, known a cycle ahead), so
 // the word is there from early in the cycle, as the store at that edge left it; it has its
-// own copy of the banks. The fetch port reads at the rising edge too, from `i_half`, which
-// is then the core's next fetch address: its word is there from early in the next cycle, as
-// it was before a store at that edge (the core checks for that).
+// own copy of the banks, so each copy's reads are on one clock edge.
 //
 // This file is the behavioural model (simulation, and iCE40 block RAM through inference:
 // each bank is duplicated there for its two read ports); fpga/soc_ram_spram.v is the
@@ -55,22 +53,11 @@ module soc_ram #(
     wire [AW-1:0] iw_lo = iw + {{(AW-1){1'b0}}, i_half[0]};
     reg  [15:0]   i_lo_q, i_hi_q;
     reg           i_odd_q;
-    generate
-        if (EARLY != 0) begin : i_early
-            // the pipelined core gives the next fetch address: read at the rising edge
-            always @(posedge clk) begin
-                i_lo_q  <= lo[iw_lo];
-                i_hi_q  <= hi[iw];
-                i_odd_q <= i_half[0];
-            end
-        end else begin : i_late
-            always @(negedge clk) begin
-                i_lo_q  <= lo[iw_lo];
-                i_hi_q  <= hi[iw];
-                i_odd_q <= i_half[0];
-            end
-        end
-    endgenerate
+    always @(negedge clk) begin
+        i_lo_q  <= lo[iw_lo];
+        i_hi_q  <= hi[iw];
+        i_odd_q <= i_half[0];
+    end
     assign i_rdata = i_odd_q ? {i_lo_q, i_hi_q} : {i_hi_q, i_lo_q};
 
     generate
