@@ -108,6 +108,15 @@ impl Board {
         }
     }
 
+    /// The clock the SoC is to reach on this board (the FPGA goals: 24 MHz on the UP5K, 60 on
+    /// the HX8K); a timing probe is held to it.
+    pub fn fmax_goal_mhz(self) -> f64 {
+        match self {
+            Board::Up5k => 24.0,
+            Board::Hx8k => 60.0,
+        }
+    }
+
     /// Whether the multiplier goes into DSP blocks (`synth_ice40 -dsp`).
     pub fn has_dsp(self) -> bool {
         matches!(self, Board::Up5k)
@@ -263,11 +272,14 @@ impl Target {
         }
     }
 
-    /// The clock the design is timed at, in MHz.
+    /// The clock the design is held to, in MHz (nextpnr weighs every design's paths against
+    /// the SoC clock; a probe is then held to the board's goal).
     pub fn clock_mhz(&self) -> f64 {
         match self.design {
             Design::Soc => SOC_CLOCK_MHZ / f64::from(1u32 << self.clock_div_log2.min(16)),
-            Design::Core | Design::Vision | Design::Probe(_) => SOC_CLOCK_MHZ,
+            Design::Core | Design::Vision => SOC_CLOCK_MHZ,
+            // a stage of the planned core must leave the SoC its goal
+            Design::Probe(_) => self.board.fmax_goal_mhz(),
         }
     }
 
@@ -437,6 +449,12 @@ mod tests {
         assert!((t.clock_mhz() - 3.703125).abs() < 1e-9);
         assert_eq!(t.dir_name(), "up5k-soc-div4-seed1");
         assert_eq!(Target::core(Board::Hx8k).dir_name(), "hx8k-core-seed1");
+        let probe = Target {
+            design: Design::Probe(Stage::Decode),
+            ..Target::core(Board::Up5k)
+        };
+        assert!((probe.clock_mhz() - 24.0).abs() < 1e-9);
+        assert_eq!(probe.dir_name(), "up5k-probe-decode-seed1");
         let v = Target {
             vision_unit: true,
             ..Target::soc(Board::Up5k)

@@ -14,9 +14,7 @@ use fpga::{Board, Design, Outcome, Sources, Stage, Target};
 
 use crate::bench::{field, figures, ignored_test_named, verdict};
 
-/// Goals of the issue: Fmax of the SoC on each board, LUT4 of the core with C.
-const FMAX_GOAL_HX8K: f64 = 60.0;
-const FMAX_GOAL_UP5K: f64 = 24.0;
+/// Goal of the issue: LUT4 of the core with C (the Fmax goals: `Board::fmax_goal_mhz`).
 const CORE_LUT_GOAL: u64 = 2000;
 /// Goal of the vision unit: LUT4 (and it must run at the SoC clock).
 pub(crate) const VISION_LUT_GOAL: u64 = 800;
@@ -28,10 +26,7 @@ const BRING_UP_DIV_LOG2: u32 = 2;
 const LOCKSTEP_GOAL: u64 = 100_000_000;
 
 fn goal(board: Board) -> f64 {
-    match board {
-        Board::Up5k => FMAX_GOAL_UP5K,
-        Board::Hx8k => FMAX_GOAL_HX8K,
-    }
+    board.fmax_goal_mhz()
 }
 
 fn row(o: &Outcome) -> String {
