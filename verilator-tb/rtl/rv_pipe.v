@@ -361,8 +361,9 @@ module rv_pipe #(
     wire        md_neg = f3[1] ? neg_a : (neg_a ^ neg_b) && rs2v != 32'd0;
     wire [31:0] ng_in  = is_div ? md_res : prod_u[63:32];
     // an iterative result's sign fix-up as latched at its start (md_sq), off the operands'
-    // forwarding; a one-cycle product's from the operands
-    wire        ng     = is_iter ? md_sq : prod_neg;
+    // forwarding; a one-cycle product's from the operands (with MUL_SEQ every product is
+    // iterative: the operands' signs then reach no result but through md_sq)
+    wire        ng     = MUL_SEQ != 0 || is_iter ? md_sq : prod_neg;
     wire [31:0] ng_out = (ng_in ^ {32{ng}}) + {31'd0, ng && (is_div || lo_zero)};
     wire [31:0] mul_out = MUL_SEQ != 0 && is_shift ? sh_out :
                           use_lo && !is_div ? prod_u[31:0] : ng_out;
