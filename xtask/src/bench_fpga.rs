@@ -25,10 +25,6 @@ const BRING_UP_DIV_LOG2: u32 = 2;
 /// Instructions the lockstep benchmark checks at least.
 const LOCKSTEP_GOAL: u64 = 100_000_000;
 
-fn goal(board: Board) -> f64 {
-    board.fmax_goal_mhz()
-}
-
 fn row(o: &Outcome) -> String {
     let t = &o.target;
     let lc = o.logic_cells.map_or("?".into(), |u| u.describe());
@@ -151,9 +147,9 @@ pub fn fpga() -> Result<String> {
             md,
             "| SoC Fmax on {} >= {} MHz | {} | {} |",
             board.name(),
-            goal(board),
+            board.fmax_goal_mhz(),
             best.map_or("not placed".into(), |f| format!("{f:.2} MHz")),
-            verdict(best.is_some_and(|f| f >= goal(board)))
+            verdict(best.is_some_and(|f| f >= board.fmax_goal_mhz()))
         );
     }
     if let Some(core) = outcomes
@@ -200,11 +196,7 @@ pub fn probes() -> Result<String> {
     crate::install::ensure_fpga_tools()?;
     let out = crate::fpga::out_dir().join("bench");
     let sources = Sources::in_workspace();
-    let mut md = String::from(
-        "## The planned core's stages on iCE40 FPGAs
-
-",
-    );
+    let mut md = String::from("## The planned core's stages on iCE40 FPGAs\n\n");
     md.push_str(
         "Each pipeline stage of the six-stage core that docs/fpga.md plans, alone between flip-flops and fed by an LFSR (`verilator-tb/fpga/probe/`), through the SoC's flow (`synth_ice40 -abc9`, `-dsp` on UP5K; nextpnr-ice40, three placer seeds). A stage holds the SoC's Fmax goal when its worst seed does; what the goal leaves over is what the stage's share of the rest of the core (its control, the fuller part) may take.\n\n",
     );
@@ -247,9 +239,9 @@ pub fn probes() -> Result<String> {
                 o.cells.ram,
                 o.logic_cells.map_or("?".into(), |u| u.describe()),
                 seeds.join(" / "),
-                goal(board),
+                board.fmax_goal_mhz(),
                 if placed {
-                    format!("{:+.0} %", (worst / goal(board) - 1.0) * 100.0)
+                    format!("{:+.0} %", (worst / board.fmax_goal_mhz() - 1.0) * 100.0)
                 } else {
                     "**not placed**".into()
                 }
