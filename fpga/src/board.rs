@@ -32,6 +32,10 @@ pub enum Design {
     /// A timing probe: one pipeline stage of a planned core alone between flip-flops
     /// (`fpga/probe/`, docs/fpga.md), fed by an LFSR.
     Probe(Stage),
+    /// Another core, as published, in a generated wrapper that feeds its inputs from an LFSR
+    /// and folds its outputs into two pins (`fpga::reference`): what the same flow makes of
+    /// the cores our goals were set against. Its Verilog is the caller's.
+    Reference,
 }
 
 /// The pipeline stages the timing probes hold (`verilator-tb/fpga/probe/<stage>_stage.v`).
@@ -178,6 +182,7 @@ impl Board {
             (_, Design::Core) => "core_top",
             (_, Design::Vision) => "vision_top",
             (_, Design::Probe(stage)) => stage.top(),
+            (_, Design::Reference) => crate::reference::WRAPPER_TOP,
         }
     }
 
@@ -185,9 +190,9 @@ impl Board {
         match (self, design) {
             (Board::Up5k, Design::Soc) => "icebreaker.pcf",
             (Board::Hx8k, Design::Soc) => "hx8k.pcf",
-            // the unit alone and the probes have the core alone's pins
-            (Board::Up5k, Design::Core | Design::Vision | Design::Probe(_)) => "core_up5k.pcf",
-            (Board::Hx8k, Design::Core | Design::Vision | Design::Probe(_)) => "core_hx8k.pcf",
+            // the unit alone, the probes and other cores have the core alone's pins
+            (Board::Up5k, _) => "core_up5k.pcf",
+            (Board::Hx8k, _) => "core_hx8k.pcf",
         }
     }
 }
@@ -223,6 +228,7 @@ impl Design {
             Design::Probe(Stage::Fetch) => "probe-fetch",
             Design::Probe(Stage::Decode) => "probe-decode",
             Design::Probe(Stage::Execute) => "probe-execute",
+            Design::Reference => "reference",
         }
     }
 }
@@ -278,8 +284,9 @@ impl Target {
         match self.design {
             Design::Soc => SOC_CLOCK_MHZ / f64::from(1u32 << self.clock_div_log2.min(16)),
             Design::Core | Design::Vision => SOC_CLOCK_MHZ,
-            // a stage of the planned core must leave the SoC its goal
-            Design::Probe(_) => self.board.fmax_goal_mhz(),
+            // a stage of the planned core must leave the SoC its goal; another core is held
+            // to the goal too
+            Design::Probe(_) | Design::Reference => self.board.fmax_goal_mhz(),
         }
     }
 
@@ -326,6 +333,8 @@ impl Target {
                 fpga("core_top.v"),
             ],
             Design::Vision => vec![rtl("vision_unit.v"), fpga("vision_top.v")],
+            // the caller's files and the wrapper generated for them (`fpga::reference`)
+            Design::Reference => Vec::new(),
             // (the decode stage expands with the cores' own module)
             Design::Probe(stage) => vec![
                 rtl("rv_expand.v"),

@@ -43,6 +43,9 @@ pub enum FlowError {
         /// Its log.
         log: PathBuf,
     },
+    /// Another core's Verilog cannot be wrapped (`crate::reference`).
+    #[error("{0}")]
+    Reference(String),
     /// Synthesis printed no cell counts.
     #[error("yosys printed no cell statistics; see {}", .0.display())]
     NoStat(PathBuf),
@@ -56,7 +59,7 @@ pub enum FlowError {
     },
 }
 
-fn io_err(what: impl Into<String>) -> impl FnOnce(io::Error) -> FlowError {
+pub(crate) fn io_err(what: impl Into<String>) -> impl FnOnce(io::Error) -> FlowError {
     let what = what.into();
     move |source| FlowError::Io { what, source }
 }
@@ -113,16 +116,30 @@ impl Outcome {
 /// A design that does not fit or misses timing is an [`Outcome`], not an error: the caller
 /// decides (see [`Outcome::timing_met`]).
 pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, FlowError> {
+    build_in(
+        target,
+        &target.verilog(sources),
+        &target.pcf(sources),
+        out.join(target.dir_name()),
+    )
+}
+
+/// [`build`] with the Verilog files and the pin file given, outputs in `dir`.
+pub(crate) fn build_in(
+    target: &Target,
+    files: &[PathBuf],
+    pcf_in: &Path,
+    dir: PathBuf,
+) -> Result<Outcome, FlowError> {
     if let Some(t) = missing_tools().first() {
         return Err(FlowError::ToolMissing(t));
     }
-    let dir = out.join(target.dir_name());
     fs::create_dir_all(&dir).map_err(io_err(format!("creating {}", dir.display())))?;
 
     // ------------------------------------------------------------------ yosys
     let json = dir.join("netlist.json");
     let mut script = String::from("read_verilog -defer");
-    for f in target.verilog(sources) {
+    for f in files {
         script.push_str(&format!(" \"{}\"", f.display()));
     }
     script.push('\n');
@@ -179,8 +196,8 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
 
     // ------------------------------------------------------------------ nextpnr
     let pcf = dir.join("pins.pcf");
-    let mut pins = fs::read_to_string(target.pcf(sources))
-        .map_err(io_err(format!("reading {}", target.pcf(sources).display())))?;
+    let mut pins =
+        fs::read_to_string(pcf_in).map_err(io_err(format!("reading {}", pcf_in.display())))?;
     if target.design == Design::Soc && target.clock_div_log2 > 0 {
         pins.push_str(&format!("set_frequency soc_clk {}\n", target.clock_mhz()));
     }
@@ -234,7 +251,9 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
     let timing = Timing::from_report(&report);
     let clock = match target.design {
         Design::Soc => timing.find_clock(&["soc_clk", "clk_pll"]),
-        Design::Core | Design::Vision | Design::Probe(_) => timing.find_clock(&["clk"]),
+        Design::Core | Design::Vision | Design::Probe(_) | Design::Reference => {
+            timing.find_clock(&["clk"])
+        }
     }
     .unwrap_or("")
     .to_owned();
@@ -262,7 +281,11 @@ pub fn build(target: &Target, sources: &Sources, out: &Path) -> Result<Outcome, 
 }
 
 /// Runs `cmd` with its output in `log`, within [`TOOL_TIMEOUT`].
-fn run_logged(tool: &'static str, cmd: &mut Command, log: &Path) -> Result<(), FlowError> {
+pub(crate) fn run_logged(
+    tool: &'static str,
+    cmd: &mut Command,
+    log: &Path,
+) -> Result<(), FlowError> {
     let file = fs::File::create(log).map_err(io_err(format!("creating {}", log.display())))?;
     let err = file
         .try_clone()

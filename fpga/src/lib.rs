@@ -8,6 +8,8 @@
 //!   `target/fpga/`).
 //! - [`report`]: cell counts, utilization and timing read from the tools' output, with the
 //!   paths through DSP blocks that nextpnr 0.4 leaves out of a clock's Fmax added back.
+//! - [`reference`]: another core's published Verilog through the same flow, in a generated
+//!   wrapper (what the flow makes of the cores the goals were set against).
 //! - [`demo`]: the program image the boards load from their SPI flash.
 //!
 //! docs/fpga.md describes the flow, the boards, their memory and clocking.
@@ -15,6 +17,7 @@
 pub mod board;
 pub mod demo;
 pub mod flow;
+pub mod reference;
 pub mod report;
 
 pub use board::{Board, Design, Sources, Stage, Target, SOC_CLOCK_MHZ, SOC_CLOCK_NOMINAL_MHZ};

@@ -53,6 +53,7 @@ fn row(o: &Outcome) -> String {
                 1u32 << t.board.vision_cap_aw()
             ),
             (Design::Probe(stage), _) => format!("{} stage (probe)", stage.name()),
+            (Design::Reference, _) => "another core".to_owned(),
         },
         t.seed,
         o.cells.lut4,

@@ -35,6 +35,66 @@ pub struct FpgaArgs {
     /// between flip-flops (fetch, decode or execute; docs/fpga.md).
     #[arg(long, value_name = "STAGE", conflicts_with_all = ["core", "vision", "vision_unit"])]
     probe: Option<Stage>,
+    /// Build another core instead of the SoC: its Verilog file(s), in a generated wrapper that
+    /// drives its inputs from an LFSR and folds its outputs into two pins, held to the board's
+    /// Fmax goal (how the same flow does with the cores the goals were set against;
+    /// docs/fpga.md). Needs --top.
+    #[arg(long, value_name = "FILE", num_args = 1.., requires = "top",
+          conflicts_with_all = ["core", "vision", "vision_unit", "probe"])]
+    reference: Vec<PathBuf>,
+    /// The top module of --reference.
+    #[arg(long, value_name = "MODULE", requires = "reference")]
+    top: Option<String>,
+    /// The clock input of --reference (else clk, clock, io_clk, io_mainClk or CLK).
+    #[arg(long, value_name = "PORT", requires = "reference")]
+    clock_port: Option<String>,
+    /// The reset input of --reference (else reset, rst, io_reset, resetn, rst_n or
+    /// io_asyncReset if there is one; a name ending in n or _b is active low).
+    #[arg(long, value_name = "PORT", requires = "reference")]
+    reset_port: Option<String>,
+}
+
+/// `--reference`: another core on each board; fails only when it cannot be placed.
+fn run_reference(args: &FpgaArgs, top: &str, boards: &[Board]) -> Result<()> {
+    for f in &args.reference {
+        if !f.is_file() {
+            bail!("--reference: no file {}", f.display());
+        }
+    }
+    let reference = fpga::reference::Reference {
+        files: args.reference.clone(),
+        top: top.to_owned(),
+        clock: args.clock_port.clone(),
+        reset: args.reset_port.clone(),
+    };
+    let out = out_dir();
+    let sources = Sources::in_workspace();
+    let mut failed = Vec::new();
+    for &board in boards {
+        stage(&format!("{} {top} (another core)", board.title()));
+        let built = fpga::reference::build(&reference, board, args.seed, &sources, &out)
+            .with_context(|| format!("building {top} for {}", board.name()))?;
+        let (ins, outs) = built.wrapper_bits();
+        println!(
+            "{top} in the wrapper: {ins} input and {outs} output bits in its registers (about \
+             {} logic cells of the figures below, and {} more for the fold)",
+            ins + outs,
+            outs.div_ceil(12)
+        );
+        let outcome = built.outcome;
+        print!("{}", fpga::summary(&outcome));
+        if outcome.placed.is_none() {
+            failed.push(fpga::reference::dir_name(board, top, args.seed));
+        }
+    }
+    if !failed.is_empty() {
+        bail!(
+            "not placed: {} (outputs in {})",
+            failed.join(", "),
+            out.display()
+        );
+    }
+    Ok(())
 }
 
 fn parse_board(s: &str) -> Result<Board, String> {
@@ -52,6 +112,9 @@ pub fn run(args: FpgaArgs) -> Result<()> {
     let boards: Vec<Board> = args.board.map_or(Board::ALL.to_vec(), |b| vec![b]);
     let out = out_dir();
     let sources = Sources::in_workspace();
+    if let Some(top) = &args.top {
+        return run_reference(&args, top, &boards);
+    }
     let mut failed = Vec::new();
     for board in boards {
         let target = Target {

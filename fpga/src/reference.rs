@@ -1,0 +1,476 @@
+//! Another core through the same flow: a published core's Verilog (VexRiscv's generated
+//! netlists, say) is placed and routed on a board exactly as our core alone is, so that its
+//! figures and ours come from the same tools and options.
+//!
+//! The core's ports are read with yosys (`write_json` after `hierarchy` and `proc`), and a wrapper is
+//! generated around it ([`wrapper`]): one clock, a registered reset, every other input driven
+//! from its own register loaded from a rotation of a 32-bit LFSR, every output registered
+//! and folded (XOR, two registered levels of 16 bits) into two pins, so nothing is constant
+//! and nothing is removed. The wrapper has the core alone's pins (`core_up5k.pcf`,
+//! `core_hx8k.pcf`), and the design is held to the board's Fmax goal, as the probes are.
+//! Every path of the core from and to a register is timed as in the core's own system;
+//! paths from an input straight to an output of the core (none in a registered core) end at
+//! the wrapper's registers.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::board::{Board, Design, Sources, Target};
+use crate::flow::{self, io_err, FlowError, Outcome};
+
+/// The generated wrapper's module name.
+pub const WRAPPER_TOP: &str = "ref_top";
+
+/// A port of the wrapped core.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Port {
+    /// Its name as the Verilog spells it.
+    pub name: String,
+    /// An input (else an output).
+    pub input: bool,
+    /// Its width in bits.
+    pub width: usize,
+}
+
+/// What to wrap.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Reference {
+    /// The core's Verilog files, in reading order.
+    pub files: Vec<PathBuf>,
+    /// Its top module.
+    pub top: String,
+    /// Its clock input; found by name when `None` ([`CLOCK_NAMES`]).
+    pub clock: Option<String>,
+    /// Its reset input, if it has one; found by name when `None` ([`RESET_NAMES`]). A name
+    /// ending in `n` or `_b` is taken as active low.
+    pub reset: Option<String>,
+}
+
+/// Clock port names tried in order when none is given.
+pub const CLOCK_NAMES: [&str; 5] = ["clk", "clock", "io_clk", "io_mainClk", "CLK"];
+/// Reset port names tried in order when none is given.
+pub const RESET_NAMES: [&str; 6] = [
+    "reset",
+    "rst",
+    "io_reset",
+    "resetn",
+    "rst_n",
+    "io_asyncReset",
+];
+
+/// The ports of `top` from yosys's JSON netlist (`modules.<top>.ports`).
+pub fn ports_from_json(json: &serde_json::Value, top: &str) -> Result<Vec<Port>, FlowError> {
+    let ports = json
+        .get("modules")
+        .and_then(|m| m.get(top))
+        .and_then(|m| m.get("ports"))
+        .and_then(serde_json::Value::as_object)
+        .ok_or_else(|| FlowError::Reference(format!("no module `{top}` in the Verilog")))?;
+    let mut out = Vec::with_capacity(ports.len());
+    for (name, p) in ports {
+        let width = p
+            .get("bits")
+            .and_then(serde_json::Value::as_array)
+            .map_or(0, Vec::len);
+        let input = match p.get("direction").and_then(serde_json::Value::as_str) {
+            Some("input") => true,
+            Some("output") => false,
+            other => {
+                return Err(FlowError::Reference(format!(
+                    "port `{name}` of `{top}` is {} (only inputs and outputs can be wrapped)",
+                    other.unwrap_or("of no direction")
+                )))
+            }
+        };
+        if width == 0 {
+            return Err(FlowError::Reference(format!(
+                "port `{name}` of `{top}` has no bits"
+            )));
+        }
+        out.push(Port {
+            name: name.clone(),
+            input,
+            width,
+        });
+    }
+    Ok(out)
+}
+
+/// Reads `top`'s ports with yosys (its log and JSON in `dir`).
+pub fn ports(files: &[PathBuf], top: &str, dir: &Path) -> Result<Vec<Port>, FlowError> {
+    if let Some(t) = flow::missing_tools().first() {
+        return Err(FlowError::ToolMissing(t));
+    }
+    fs::create_dir_all(dir).map_err(io_err(format!("creating {}", dir.display())))?;
+    let json = dir.join("ports.json");
+    let mut script = String::from("read_verilog -defer");
+    for f in files {
+        let _ = write!(script, " \"{}\"", f.display());
+    }
+    let _ = write!(
+        script,
+        "\nhierarchy -top {top}\nproc\nwrite_json \"{}\"\n",
+        json.display()
+    );
+    let ys = dir.join("ports.ys");
+    fs::write(&ys, script).map_err(io_err(format!("writing {}", ys.display())))?;
+    flow::run_logged(
+        "yosys",
+        Command::new("yosys").arg("-q").arg("-s").arg(&ys),
+        &dir.join("ports.log"),
+    )?;
+    let text = fs::read_to_string(&json).map_err(io_err(format!("reading {}", json.display())))?;
+    let value: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| FlowError::Reference(format!("{}: {e}", json.display())))?;
+    ports_from_json(&value, top)
+}
+
+/// A port name as a Verilog identifier (escaped when it is not a simple one).
+fn ident(name: &str) -> String {
+    let simple = name
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '$');
+    if simple {
+        name.to_owned()
+    } else {
+        format!("\\{name} ")
+    }
+}
+
+fn active_low(name: &str) -> bool {
+    let n = name.to_ascii_lowercase();
+    n.ends_with('n') && (n.ends_with("_n") || n.ends_with("resetn") || n.ends_with("rstn"))
+        || n.ends_with("_b")
+}
+
+fn find<'a>(ports: &'a [Port], given: Option<&str>, names: &[&str]) -> Option<&'a Port> {
+    match given {
+        Some(g) => ports.iter().find(|p| p.name == g),
+        None => names
+            .iter()
+            .find_map(|n| ports.iter().find(|p| p.name == *n)),
+    }
+}
+
+/// The clock and reset inputs the wrapper drives (see [`Reference`]).
+fn pick<'a>(
+    top: &str,
+    ports: &'a [Port],
+    clock: Option<&str>,
+    reset: Option<&str>,
+) -> Result<(&'a Port, Option<&'a Port>), FlowError> {
+    let clk = find(ports, clock, &CLOCK_NAMES)
+        .filter(|p| p.input && p.width == 1)
+        .ok_or_else(|| {
+            FlowError::Reference(format!(
+                "`{top}` has no one-bit clock input {}",
+                clock.map_or_else(
+                    || format!("named one of {CLOCK_NAMES:?} (give its name)"),
+                    |c| format!("`{c}`")
+                )
+            ))
+        })?;
+    let rst = match find(ports, reset, &RESET_NAMES) {
+        Some(p) if p.input && p.width == 1 && p.name != clk.name => Some(p),
+        Some(_) | None if reset.is_some() => {
+            return Err(FlowError::Reference(format!(
+                "`{top}` has no one-bit reset input `{}`",
+                reset.unwrap_or_default()
+            )))
+        }
+        _ => None,
+    };
+    Ok((clk, rst))
+}
+
+/// The wrapper's Verilog for `top` with `ports` (see the module's documentation).
+pub fn wrapper(
+    top: &str,
+    ports: &[Port],
+    clock: Option<&str>,
+    reset: Option<&str>,
+) -> Result<String, FlowError> {
+    let (clk, rst) = pick(top, ports, clock, reset)?;
+    let mut v = String::new();
+    let _ = writeln!(
+        v,
+        "// Generated by fpga::reference: `{top}` between flip-flops fed by an LFSR, its outputs\n\
+         // folded into two pins (the core alone's pins).\n\
+         `default_nettype none\n\n\
+         module {WRAPPER_TOP} (\n    input  wire clk,\n    input  wire rst_pin,\n    \
+         input  wire seed,\n    output reg  out0,\n    output reg  out1\n);\n    \
+         reg rst = 1'b1;\n    always @(posedge clk) rst <= rst_pin;\n    \
+         reg [31:0] lfsr = 32'h1;\n    always @(posedge clk)\n        \
+         lfsr <= {{lfsr[30:0], lfsr[31] ^ lfsr[21] ^ lfsr[1] ^ lfsr[0] ^ seed}};"
+    );
+    let mut conns = Vec::new();
+    let mut outs = Vec::new();
+    for (i, p) in ports.iter().enumerate() {
+        let id = ident(&p.name);
+        if p.name == clk.name {
+            conns.push(format!(".{id}(clk)"));
+        } else if rst.is_some_and(|r| r.name == p.name) {
+            let level = if active_low(&p.name) { "!rst" } else { "rst" };
+            conns.push(format!(".{id}({level})"));
+        } else if p.input {
+            // its own rotation of the LFSR, repeated to the port's width
+            let r = (7 * i) % 32;
+            let word = if r == 0 {
+                "lfsr".to_owned()
+            } else {
+                format!("{{lfsr[{}:0], lfsr[31:{r}]}}", r - 1)
+            };
+            let copies = p.width.div_ceil(32);
+            let _ = writeln!(
+                v,
+                "    reg [{w}:0] i{i};\n    always @(posedge clk) i{i} <= {{{copies}{{{word}}}}};",
+                w = p.width - 1
+            );
+            conns.push(format!(".{id}(i{i})"));
+        } else {
+            let _ = writeln!(
+                v,
+                "    wire [{w}:0] o{i};\n    reg  [{w}:0] q{i};\n    always @(posedge clk) q{i} <= o{i};",
+                w = p.width - 1
+            );
+            conns.push(format!(".{id}(o{i})"));
+            outs.push((i, p.width));
+        }
+    }
+    let _ = writeln!(
+        v,
+        "\n    {top} core (\n        {}\n    );",
+        conns.join(",\n        ")
+    );
+
+    // the fold: every output bit into one vector, XORed 16 bits at a time, twice, registered
+    let n: usize = outs.iter().map(|(_, w)| w).sum::<usize>().max(1);
+    let g1 = n.div_ceil(16);
+    let g2 = g1.div_ceil(16);
+    let all = if outs.is_empty() {
+        "lfsr[0]".to_owned()
+    } else {
+        outs.iter()
+            .rev()
+            .map(|(i, _)| format!("q{i}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let _ = writeln!(
+        v,
+        "\n    wire [{p1}:0] obits = {{{pad1}{all}}};\n    reg  [{a}:0] f1;\n    \
+         reg  [{b}:0] f2;\n    wire [{p2}:0] f1p = {{{pad2}f1}};\n    integer k;\n    \
+         always @(posedge clk) begin\n        \
+         for (k = 0; k < {g1}; k = k + 1) f1[k] <= ^obits[k * 16 +: 16];\n        \
+         for (k = 0; k < {g2}; k = k + 1) f2[k] <= ^f1p[k * 16 +: 16];\n        \
+         out0 <= ^(f2 & {g2}'h{even:x});\n        out1 <= ^(f2 & ~{g2}'h{even:x}) ^ lfsr[0];\n    \
+         end\nendmodule\n\n`default_nettype wire",
+        p1 = g1 * 16 - 1,
+        pad1 = if g1 * 16 > n {
+            format!("{}'d0, ", g1 * 16 - n)
+        } else {
+            String::new()
+        },
+        a = g1 - 1,
+        b = g2 - 1,
+        p2 = g2 * 16 - 1,
+        pad2 = if g2 * 16 > g1 {
+            format!("{}'d0, ", g2 * 16 - g1)
+        } else {
+            String::new()
+        },
+        even = even_mask(g2),
+    );
+    Ok(v)
+}
+
+/// Bits 0, 2, 4, ... of a `g`-bit mask (g <= 128).
+fn even_mask(g: usize) -> u128 {
+    (0..g.min(128)).step_by(2).fold(0u128, |m, b| m | 1 << b)
+}
+
+/// The directory of one reference build: `<board>-ref-<top>-seed<S>`.
+pub fn dir_name(board: Board, top: &str, seed: u64) -> String {
+    let safe: String = top
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    format!("{}-ref-{safe}-seed{seed}", board.name())
+}
+
+/// A wrapped core's build and the ports it was wrapped by.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Built {
+    /// The flow's outcome (the figures include the wrapper's registers).
+    pub outcome: Outcome,
+    /// The core's ports.
+    pub ports: Vec<Port>,
+    /// The clock and reset inputs among them (not fed by the LFSR).
+    pub clock_reset: Vec<String>,
+}
+
+impl Built {
+    /// The bits the wrapper registers: (into the core, out of it), clock and reset left out.
+    pub fn wrapper_bits(&self) -> (usize, usize) {
+        let ins = self
+            .ports
+            .iter()
+            .filter(|p| p.input && !self.clock_reset.contains(&p.name))
+            .map(|p| p.width)
+            .sum();
+        let outs = self
+            .ports
+            .iter()
+            .filter(|p| !p.input)
+            .map(|p| p.width)
+            .sum();
+        (ins, outs)
+    }
+}
+
+/// Wraps `reference`, then synthesises, places and routes it on `board` with `seed`, held to
+/// the board's Fmax goal; outputs in `out/<dir_name>/` (the wrapper as `ref_top.v`).
+pub fn build(
+    reference: &Reference,
+    board: Board,
+    seed: u64,
+    sources: &Sources,
+    out: &Path,
+) -> Result<Built, FlowError> {
+    let dir = out.join(dir_name(board, &reference.top, seed));
+    let ports = ports(&reference.files, &reference.top, &dir)?;
+    let text = wrapper(
+        &reference.top,
+        &ports,
+        reference.clock.as_deref(),
+        reference.reset.as_deref(),
+    )?;
+    let wrap = dir.join("ref_top.v");
+    fs::write(&wrap, text).map_err(io_err(format!("writing {}", wrap.display())))?;
+    let target = Target {
+        board,
+        design: Design::Reference,
+        seed,
+        clock_div_log2: 0,
+        vision_unit: false,
+    };
+    let mut files = reference.files.clone();
+    files.push(wrap);
+    let (clk, rst) = pick(
+        &reference.top,
+        &ports,
+        reference.clock.as_deref(),
+        reference.reset.as_deref(),
+    )?;
+    let clock_reset = [Some(clk), rst]
+        .into_iter()
+        .flatten()
+        .map(|p| p.name.clone())
+        .collect();
+    let outcome = flow::build_in(&target, &files, &target.pcf(sources), dir)?;
+    Ok(Built {
+        outcome,
+        ports,
+        clock_reset,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn port(name: &str, input: bool, width: usize) -> Port {
+        Port {
+            name: name.into(),
+            input,
+            width,
+        }
+    }
+
+    #[test]
+    fn ports_are_read_from_yosys_json_and_bad_ones_refused() {
+        let json: serde_json::Value = serde_json::from_str(
+            r#"{"modules": {"cpu": {"ports": {
+                "clk": {"direction": "input", "bits": [2]},
+                "bus": {"direction": "output", "bits": [3, 4, 5]}}}}}"#,
+        )
+        .unwrap();
+        let p = ports_from_json(&json, "cpu").unwrap();
+        assert!(p.contains(&port("clk", true, 1)));
+        assert!(p.contains(&port("bus", false, 3)));
+        assert!(ports_from_json(&json, "gpu").is_err());
+        let inout: serde_json::Value = serde_json::from_str(
+            r#"{"modules": {"cpu": {"ports": {"pad": {"direction": "inout", "bits": [2]}}}}}"#,
+        )
+        .unwrap();
+        let e = ports_from_json(&inout, "cpu").unwrap_err().to_string();
+        assert!(e.contains("inout"), "{e}");
+    }
+
+    #[test]
+    fn the_wrapper_drives_every_input_and_folds_every_output() {
+        let ports = [
+            port("io_clk", true, 1),
+            port("resetn", true, 1),
+            port("iBus_rsp", true, 40),
+            port("irq", true, 1),
+            port("dBus_cmd", false, 70),
+            port("weird.name", false, 1),
+        ];
+        let v = wrapper("Cpu", &ports, None, None).unwrap();
+        assert!(v.contains(".io_clk(clk)"), "{v}");
+        assert!(v.contains(".resetn(!rst)"), "{v}");
+        // 40 bits: two copies of the rotated LFSR, truncated by the register
+        assert!(v.contains("reg [39:0] i2;"), "{v}");
+        assert!(v.contains("i2 <= {2{{lfsr[13:0], lfsr[31:14]}}};"), "{v}");
+        assert!(v.contains("i3 <= {1{{lfsr[20:0], lfsr[31:21]}}};"), "{v}");
+        assert!(v.contains(".\\weird.name (o5)"), "{v}");
+        // 71 output bits: five groups of 16 (9 bits of padding), one second-level group
+        assert!(v.contains("wire [79:0] obits = {9'd0, q5, q4};"), "{v}");
+        assert!(v.contains("reg  [4:0] f1;"), "{v}");
+        assert!(v.contains("reg  [0:0] f2;"), "{v}");
+        assert!(v.contains("out0 <= ^(f2 & 1'h1);"), "{v}");
+    }
+
+    #[test]
+    fn a_clock_or_reset_that_is_not_there_is_an_error() {
+        let ports = [port("clock_in", true, 1), port("y", false, 8)];
+        let e = wrapper("Cpu", &ports, None, None).unwrap_err().to_string();
+        assert!(e.contains("no one-bit clock input"), "{e}");
+        assert!(wrapper("Cpu", &ports, Some("clock_in"), None).is_ok());
+        let e = wrapper("Cpu", &ports, Some("clock_in"), Some("rst"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no one-bit reset input `rst`"), "{e}");
+        // a wide "clock" is refused too
+        let wide = [port("clk", true, 2), port("y", false, 1)];
+        assert!(wrapper("Cpu", &wide, None, None).is_err());
+    }
+
+    #[test]
+    fn active_low_resets_are_told_by_their_names() {
+        for n in ["resetn", "rst_n", "RESET_N", "reset_b", "io_rstn"] {
+            assert!(active_low(n), "{n}");
+        }
+        for n in ["reset", "rst", "io_reset", "io_asyncReset"] {
+            assert!(!active_low(n), "{n}");
+        }
+    }
+
+    #[test]
+    fn the_even_mask_and_directory_names() {
+        assert_eq!(even_mask(1), 1);
+        assert_eq!(even_mask(5), 0b10101);
+        assert_eq!(
+            dir_name(Board::Hx8k, "VexRiscv", 2),
+            "hx8k-ref-VexRiscv-seed2"
+        );
+        assert_eq!(dir_name(Board::Up5k, "a.b", 1), "up5k-ref-a_b-seed1");
+    }
+}
