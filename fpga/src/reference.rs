@@ -2,11 +2,12 @@
 //! netlists, say) is placed and routed on a board exactly as our core alone is, so that its
 //! figures and ours come from the same tools and options.
 //!
-//! The core's ports are read with yosys (`write_json` after `hierarchy` and `proc`), and a wrapper is
-//! generated around it ([`wrapper`]): one clock, a registered reset, every other input driven
-//! from its own register loaded from a rotation of a 32-bit LFSR, every output registered
-//! and folded (XOR, two registered levels of 16 bits) into two pins, so nothing is constant
-//! and nothing is removed. The wrapper has the core alone's pins (`core_up5k.pcf`,
+//! The core's ports are read with yosys (`write_json` after `hierarchy` and `proc`), and a
+//! wrapper is generated around it ([`wrapper`]): one clock, a registered reset, every other
+//! input bit driven from its own register loaded with the XOR of three bits of a 32-bit LFSR,
+//! every output registered and taken, four bits to a register, into a 32-bit signature
+//! register (an LFSR with inputs) whose two bits are the pins, so nothing is constant and
+//! nothing is removed. The wrapper has the core alone's pins (`core_up5k.pcf`,
 //! `core_hx8k.pcf`), and the design is held to the board's Fmax goal, as the probes are.
 //! Every path of the core from and to a register is timed as in the core's own system;
 //! paths from an input straight to an output of the core (none in a registered core) end at
@@ -211,6 +212,7 @@ pub fn wrapper(
     );
     let mut conns = Vec::new();
     let mut outs = Vec::new();
+    let mut next_bit = 0;
     for (i, p) in ports.iter().enumerate() {
         let id = ident(&p.name);
         if p.name == clk.name {
@@ -219,17 +221,21 @@ pub fn wrapper(
             let level = if active_low(&p.name) { "!rst" } else { "rst" };
             conns.push(format!(".{id}({level})"));
         } else if p.input {
-            // its own rotation of the LFSR, repeated to the port's width
-            let r = (7 * i) % 32;
-            let word = if r == 0 {
-                "lfsr".to_owned()
-            } else {
-                format!("{{lfsr[{}:0], lfsr[31:{r}]}}", r - 1)
-            };
-            let copies = p.width.div_ceil(32);
+            // each bit the XOR of its own three LFSR bits, so that no two input bits are the
+            // same register (yosys merges equal flip-flops, and the core's logic would then
+            // fold equal inputs together)
+            let bits: Vec<String> = (0..p.width)
+                .rev()
+                .map(|b| {
+                    let [x, y, z] = lfsr_triple(next_bit + b);
+                    format!("lfsr[{x}] ^ lfsr[{y}] ^ lfsr[{z}]")
+                })
+                .collect();
+            next_bit += p.width;
             let _ = writeln!(
                 v,
-                "    reg [{w}:0] i{i};\n    always @(posedge clk) i{i} <= {{{copies}{{{word}}}}};",
+                "    reg [{w}:0] i{i};\n    always @(posedge clk)\n        i{i} <= {{{}}};",
+                bits.join(",\n            "),
                 w = p.width - 1
             );
             conns.push(format!(".{id}(i{i})"));
@@ -249,12 +255,13 @@ pub fn wrapper(
         conns.join(",\n        ")
     );
 
-    // the fold: every output bit into one vector, XORed 16 bits at a time, twice, registered
-    let n: usize = outs.iter().map(|(_, w)| w).sum::<usize>().max(1);
-    let g1 = n.div_ceil(16);
-    let g2 = g1.div_ceil(16);
+    // the fold: every output bit into one vector, XORed 4 bits at a time into registers,
+    // and those into a 32-bit signature register (an LFSR that takes them in: its state
+    // depends on every bit it has taken, so no constant can be worked out through it and
+    // nothing of the core is removed)
+    let n: usize = outs.iter().map(|(_, w)| w).sum();
     let all = if outs.is_empty() {
-        "lfsr[0]".to_owned()
+        "lfsr[1:0]".to_owned()
     } else {
         outs.iter()
             .rev()
@@ -262,46 +269,92 @@ pub fn wrapper(
             .collect::<Vec<_>>()
             .join(", ")
     };
+    let n = n.max(2);
+    let g = n.div_ceil(4);
+    let slots: Vec<String> = (0..32)
+        .rev()
+        .map(|j| {
+            let terms: Vec<String> = (j..g).step_by(32).map(|k| format!("f[{k}]")).collect();
+            if terms.is_empty() {
+                "1'b0".to_owned()
+            } else {
+                terms.join(" ^ ")
+            }
+        })
+        .collect();
     let _ = writeln!(
         v,
-        "\n    wire [{p1}:0] obits = {{{pad1}{all}}};\n    reg  [{a}:0] f1;\n    \
-         reg  [{b}:0] f2;\n    wire [{p2}:0] f1p = {{{pad2}f1}};\n    integer k;\n    \
+        "\n    wire [{p}:0] obits = {{{pad}{all}}};\n    reg  [{a}:0] f;\n    \
+         reg  [31:0] sig = 32'd0;\n    integer k;\n    \
          always @(posedge clk) begin\n        \
-         for (k = 0; k < {g1}; k = k + 1) f1[k] <= ^obits[k * 16 +: 16];\n        \
-         for (k = 0; k < {g2}; k = k + 1) f2[k] <= ^f1p[k * 16 +: 16];\n        \
-         out0 <= ^(f2 & {g2}'h{even:x});\n        out1 <= ^(f2 & ~{g2}'h{even:x}) ^ lfsr[0];\n    \
+         for (k = 0; k < {g}; k = k + 1) f[k] <= ^obits[k * 4 +: 4];\n        \
+         sig <= {{sig[30:0], sig[31] ^ sig[21] ^ sig[1] ^ sig[0]}} ^ {{\n            {}\n        }};\n        \
+         out0 <= sig[31];\n        out1 <= sig[15];\n    \
          end\nendmodule\n\n`default_nettype wire",
-        p1 = g1 * 16 - 1,
-        pad1 = if g1 * 16 > n {
-            format!("{}'d0, ", g1 * 16 - n)
+        slots.join(",\n            "),
+        p = g * 4 - 1,
+        pad = if g * 4 > n {
+            format!("{}'d0, ", g * 4 - n)
         } else {
             String::new()
         },
-        a = g1 - 1,
-        b = g2 - 1,
-        p2 = g2 * 16 - 1,
-        pad2 = if g2 * 16 > g1 {
-            format!("{}'d0, ", g2 * 16 - g1)
-        } else {
-            String::new()
-        },
-        even = even_mask(g2),
+        a = g - 1,
     );
     Ok(v)
 }
 
-/// Bits 0, 2, 4, ... of a `g`-bit mask (g <= 128).
-fn even_mask(g: usize) -> u128 {
-    (0..g.min(128)).step_by(2).fold(0u128, |m, b| m | 1 << b)
+/// The three LFSR bits (a < b < c) that feed the wrapper's `j`-th input bit: the 4 960 triples
+/// of 32 bits in a scrambled order, distinct for the first 4 960 bits.
+fn lfsr_triple(j: usize) -> [usize; 3] {
+    const N: usize = 32 * 31 * 30 / 6;
+    // 1237 is prime to 4 960 = 2^5 * 5 * 31, so j -> k is a permutation
+    let mut k = (j * 1237) % N;
+    for a in 0..32 {
+        let with_a = (31 - a) * (30 - a) / 2;
+        if k < with_a {
+            for b in a + 1..32 {
+                let with_b = 31 - b;
+                if k < with_b {
+                    return [a, b, b + 1 + k];
+                }
+                k -= with_b;
+            }
+        }
+        k -= with_a;
+    }
+    unreachable!("k < N")
 }
 
-/// The directory of one reference build: `<board>-ref-<top>-seed<S>`.
-pub fn dir_name(board: Board, top: &str, seed: u64) -> String {
-    let safe: String = top
-        .chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
-        .collect();
-    format!("{}-ref-{safe}-seed{seed}", board.name())
+impl Reference {
+    /// A name for its builds: the top module, and the last file's stem when that is another
+    /// name (netlists of one core in several configurations share a top module).
+    pub fn name(&self) -> String {
+        let stem = self
+            .files
+            .last()
+            .and_then(|f| f.file_stem())
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let name = if stem.is_empty() || stem == self.top {
+            self.top.clone()
+        } else {
+            format!("{}-{stem}", self.top)
+        };
+        name.chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect()
+    }
+}
+
+/// The directory of one reference build: `<board>-ref-<name>-seed<S>` ([`Reference::name`]).
+pub fn dir_name(board: Board, reference: &Reference, seed: u64) -> String {
+    format!("{}-ref-{}-seed{seed}", board.name(), reference.name())
 }
 
 /// A wrapped core's build and the ports it was wrapped by.
@@ -343,7 +396,7 @@ pub fn build(
     sources: &Sources,
     out: &Path,
 ) -> Result<Built, FlowError> {
-    let dir = out.join(dir_name(board, &reference.top, seed));
+    let dir = out.join(dir_name(board, reference, seed));
     let ports = ports(&reference.files, &reference.top, &dir)?;
     let text = wrapper(
         &reference.top,
@@ -426,16 +479,26 @@ mod tests {
         let v = wrapper("Cpu", &ports, None, None).unwrap();
         assert!(v.contains(".io_clk(clk)"), "{v}");
         assert!(v.contains(".resetn(!rst)"), "{v}");
-        // 40 bits: two copies of the rotated LFSR, truncated by the register
+        // 40 bits, each of its own three LFSR bits; the next input goes on from bit 40
         assert!(v.contains("reg [39:0] i2;"), "{v}");
-        assert!(v.contains("i2 <= {2{{lfsr[13:0], lfsr[31:14]}}};"), "{v}");
-        assert!(v.contains("i3 <= {1{{lfsr[20:0], lfsr[31:21]}}};"), "{v}");
+        let [a, b, c] = lfsr_triple(0);
+        assert!(
+            v.contains(&format!("lfsr[{a}] ^ lfsr[{b}] ^ lfsr[{c}]}};")),
+            "{v}"
+        );
+        let [a, b, c] = lfsr_triple(40);
+        assert!(
+            v.contains(&format!("i3 <= {{lfsr[{a}] ^ lfsr[{b}] ^ lfsr[{c}]}};")),
+            "{v}"
+        );
         assert!(v.contains(".\\weird.name (o5)"), "{v}");
-        // 71 output bits: five groups of 16 (9 bits of padding), one second-level group
-        assert!(v.contains("wire [79:0] obits = {9'd0, q5, q4};"), "{v}");
-        assert!(v.contains("reg  [4:0] f1;"), "{v}");
-        assert!(v.contains("reg  [0:0] f2;"), "{v}");
-        assert!(v.contains("out0 <= ^(f2 & 1'h1);"), "{v}");
+        // 71 output bits: 18 groups of 4 (one bit of padding), into the signature's low slots
+        assert!(v.contains("wire [71:0] obits = {1'd0, q5, q4};"), "{v}");
+        assert!(v.contains("reg  [17:0] f;"), "{v}");
+        assert!(v.contains("f[k] <= ^obits[k * 4 +: 4];"), "{v}");
+        assert!(v.contains("            f[17],\n            f[16],"), "{v}");
+        assert!(v.contains("            1'b0,\n            f[17],"), "{v}");
+        assert!(v.contains("out0 <= sig[31];"), "{v}");
     }
 
     #[test]
@@ -454,6 +517,16 @@ mod tests {
     }
 
     #[test]
+    fn the_input_bits_have_distinct_lfsr_triples() {
+        let mut seen = std::collections::HashSet::new();
+        for j in 0..4960 {
+            let [a, b, c] = lfsr_triple(j);
+            assert!(a < b && b < c && c < 32, "{j}: {a} {b} {c}");
+            assert!(seen.insert([a, b, c]), "{j} repeats {a} {b} {c}");
+        }
+    }
+
+    #[test]
     fn active_low_resets_are_told_by_their_names() {
         for n in ["resetn", "rst_n", "RESET_N", "reset_b", "io_rstn"] {
             assert!(active_low(n), "{n}");
@@ -464,13 +537,24 @@ mod tests {
     }
 
     #[test]
-    fn the_even_mask_and_directory_names() {
-        assert_eq!(even_mask(1), 1);
-        assert_eq!(even_mask(5), 0b10101);
+    fn directory_names() {
+        let r = |files: &[&str], top: &str| Reference {
+            files: files.iter().map(PathBuf::from).collect(),
+            top: top.into(),
+            clock: None,
+            reset: None,
+        };
         assert_eq!(
-            dir_name(Board::Hx8k, "VexRiscv", 2),
-            "hx8k-ref-VexRiscv-seed2"
+            dir_name(Board::Hx8k, &r(&["x/VexRiscv_Min.v"], "VexRiscv"), 2),
+            "hx8k-ref-VexRiscv-VexRiscv_Min-seed2"
         );
-        assert_eq!(dir_name(Board::Up5k, "a.b", 1), "up5k-ref-a_b-seed1");
+        assert_eq!(
+            dir_name(Board::Up5k, &r(&["a.v", "b/rv_core.v"], "rv_core"), 1),
+            "up5k-ref-rv_core-seed1"
+        );
+        assert_eq!(
+            dir_name(Board::Up5k, &r(&[], "a.b"), 1),
+            "up5k-ref-a_b-seed1"
+        );
     }
 }

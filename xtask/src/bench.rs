@@ -83,6 +83,9 @@ pub enum Bench {
     Fpga,
     /// The planned core's pipeline stages alone on the iCE40 boards (timing probes).
     Probes,
+    /// The published cores the FPGA goals were set against, through the same flow (their
+    /// netlists downloaded into target/fpga/anchors; rows say how when they are not there).
+    Anchors,
     /// The vision unit against the firmware's pixel pipeline: cycles per frame, frames per
     /// second and processor share at 14.7456 MHz; the unit's LUT4 and Fmax.
     VisionUnit,
@@ -91,7 +94,7 @@ pub enum Bench {
 }
 
 impl Bench {
-    const ALL: [Bench; 13] = [
+    const ALL: [Bench; 14] = [
         Bench::Size,
         Bench::FwDecode,
         Bench::HostDecode,
@@ -103,6 +106,7 @@ impl Bench {
         Bench::Sweep,
         Bench::Fpga,
         Bench::Probes,
+        Bench::Anchors,
         Bench::VisionUnit,
         Bench::Lockstep,
     ];
@@ -120,6 +124,7 @@ impl Bench {
             Bench::Sweep => "sweeps",
             Bench::Fpga => "the soft core on iCE40 FPGAs",
             Bench::Probes => "the planned core's stages on iCE40 FPGAs",
+            Bench::Anchors => "the anchors through this flow",
             Bench::VisionUnit => "the vision unit",
             Bench::Lockstep => "lockstep with the golden model",
         }
@@ -148,6 +153,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             Bench::Sweep => sweep(),
             Bench::Fpga => crate::bench_fpga::fpga(),
             Bench::Probes => crate::bench_fpga::probes(),
+            Bench::Anchors => crate::bench_fpga::anchors(),
             Bench::VisionUnit => crate::bench_vision::vision_unit(),
             Bench::Lockstep => crate::bench_fpga::lockstep(),
         };

@@ -3,6 +3,8 @@
 //! - `fpga`: the SoC, the core alone and the vision unit alone on both boards (nextpnr seeds 1
 //!   to 3): LUT4, FF, carry, RAM, SPRAM, DSP, logic cells and Fmax against the SoC clock and
 //!   the goals; the UP5K SoC at the bring-up clock.
+//! - `probes`: the planned core's stages alone; `anchors`: the published cores the goals were
+//!   set against, through the same flow, when their netlists have been downloaded.
 //! - `lockstep`: at least 10^8 instructions checked against the golden model: seeded random
 //!   streams (compressed instructions included) run over and over, and the firmware with
 //!   frames for its vision pipeline.
@@ -323,5 +325,156 @@ pub fn lockstep() -> Result<String> {
         md,
         "\nReproduce: `cargo xtask bench --only lockstep` (`cargo test -p verilator-tb --release --test random -- --ignored --exact random_streams_in_lockstep_long` and `random_streams_in_lockstep_long_hx8k_core`; the firmware half with `VTB_FIRMWARE`: `--test firmware -- --ignored firmware_in_lockstep_long`). A mismatch fails the run."
     );
+    Ok(md)
+}
+
+/// A published core the FPGA goals were set against, as its project generated it.
+struct Anchor {
+    /// What it is.
+    name: &'static str,
+    /// Its configuration, as its generator's arguments give it.
+    config: &'static str,
+    /// The file's name in [`anchors_dir`].
+    file: &'static str,
+    /// Its top module.
+    top: &'static str,
+    /// Where the file is published (a commit's raw URL).
+    url: &'static str,
+    /// The boards it is placed on.
+    boards: &'static [Board],
+}
+
+const ANCHORS: [Anchor; 3] = [
+    Anchor {
+        name: "VexRiscv Up5kPerf (SoC)",
+        config: "RV32IM, no C or A; six stages, two of fetch; branch prediction; the product on four SB_MAC16, written back after memory; SPRAM; 27 MHz with iCEcube2 by its README",
+        file: "Up5kPerf.v",
+        top: "Up5kPerf",
+        url: "https://raw.githubusercontent.com/SpinalHDL/VexRiscvSoftcoreContest2018/403d49b43e845d2d21bf58d35342a48dd0a86808/hardware/netlist/Up5kPerf.v",
+        boards: &[Board::Up5k],
+    },
+    Anchor {
+        name: "VexRiscv IMAC (LiteX's core)",
+        config: "RV32IMC (LiteX's `--atomics` sets the multiplier, so no A); five stages, full bypass, static branch prediction, 4 KiB instruction and data caches, products in four 17x17 parts, iterative divider",
+        file: "VexRiscv_IMAC.v",
+        top: "VexRiscv",
+        url: "https://raw.githubusercontent.com/litex-hub/pythondata-cpu-vexriscv/8845e3a9a32457c69df989b312f7b77a9939976f/pythondata_cpu_vexriscv/verilog/VexRiscv_IMAC.v",
+        boards: &[Board::Up5k, Board::Hx8k],
+    },
+    Anchor {
+        name: "VexRiscv Min (LiteX's core)",
+        config: "RV32I; five stages, no bypass (interlocks), no branch prediction, no caches, shifts a bit a cycle",
+        file: "VexRiscv_Min.v",
+        top: "VexRiscv",
+        url: "https://raw.githubusercontent.com/litex-hub/pythondata-cpu-vexriscv/712322a6b708eeef84b4afa54a0ccd58f88c0a43/pythondata_cpu_vexriscv/verilog/VexRiscv_Min.v",
+        boards: &[Board::Hx8k, Board::Up5k],
+    },
+];
+
+/// Where the anchors' netlists are read from (downloaded by hand: they are other projects'
+/// files, not ours).
+pub fn anchors_dir() -> std::path::PathBuf {
+    crate::fpga::out_dir().join("anchors")
+}
+
+/// `anchors`: the published cores the goals were set against through the same flow, each
+/// in the generated wrapper (`fpga::reference`), three seeds on each board it is placed on.
+/// A netlist that is not in [`anchors_dir`] is a row that says how to get it.
+pub fn anchors() -> Result<String> {
+    crate::install::ensure_fpga_tools()?;
+    let dir = anchors_dir();
+    let out = crate::fpga::out_dir().join("bench");
+    let sources = Sources::in_workspace();
+    let mut md = String::from("## The anchors through this flow\n\n");
+    md.push_str(
+        "Published cores the FPGA goals were set against, as their projects generated them, each in the wrapper of `fpga::reference` (its inputs from an LFSR, its outputs folded into the core alone's pins) through the same flow as ours (`synth_ice40 -abc9`, `-dsp` on UP5K; nextpnr-ice40, three placer seeds), held to the boards' goals. The logic cells include the wrapper's registers (one per input and output bit, and the fold).\n\n",
+    );
+    md.push_str(
+        "| core | configuration | board | LUT4 | FF | RAM | DSP | logic cells | wrapper bits (in / out) | Fmax by seed (MHz) | goal (MHz) |\n|---|---|---|---:|---:|---:|---:|---|---|---|---:|\n",
+    );
+    let mut missing = Vec::new();
+    for a in &ANCHORS {
+        let file = dir.join(a.file);
+        if !file.is_file() {
+            missing.push(a);
+            let _ = writeln!(
+                md,
+                "| {} | {} | | | | | | netlist not present: `{}` | | | |",
+                a.name,
+                a.config,
+                file.display()
+            );
+            continue;
+        }
+        let reference = fpga::reference::Reference {
+            files: vec![file],
+            top: a.top.into(),
+            clock: None,
+            reset: None,
+        };
+        for &board in a.boards {
+            let mut fmax = Vec::new();
+            let mut first = None;
+            for seed in SEEDS {
+                println!(
+                    "placing and routing {}",
+                    fpga::reference::dir_name(board, &reference, seed)
+                );
+                let b = fpga::reference::build(&reference, board, seed, &sources, &out)
+                    .with_context(|| format!("{} on {}", a.name, board.name()))?;
+                print!("{}", fpga::summary(&b.outcome));
+                fmax.push(b.outcome.fmax_mhz());
+                let placed = b.outcome.placed.is_some();
+                first.get_or_insert(b);
+                if !placed {
+                    // the same netlist does not fit at another seed either
+                    break;
+                }
+            }
+            let b = first.context("no seeds")?;
+            let o = &b.outcome;
+            let (ins, outs) = b.wrapper_bits();
+            let dsp = o
+                .placed
+                .as_ref()
+                .and_then(|p| p.utilization.get("ICESTORM_DSP"))
+                .map_or(o.cells.dsp, |u| u.used);
+            let seeds: Vec<String> = fmax
+                .iter()
+                .map(|f| f.map_or("**not placed**".into(), |f| format!("{f:.2}")))
+                .collect();
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {ins} / {outs} | {} | {} |",
+                a.name,
+                a.config,
+                board.name(),
+                o.cells.lut4,
+                o.cells.ff,
+                o.cells.ram,
+                dsp,
+                o.logic_cells.map_or("?".into(), |u| u.describe()),
+                seeds.join(" / "),
+                board.fmax_goal_mhz()
+            );
+        }
+    }
+    let _ = writeln!(
+        md,
+        "\nReproduce: put the netlists in `{}` and run `cargo xtask bench --only anchors`; one: `cargo xtask fpga --board up5k --reference {}/Up5kPerf.v --top Up5kPerf --seed 1`. The netlists, at the commits measured:\n",
+        dir.display(),
+        dir.display()
+    );
+    for a in &ANCHORS {
+        let _ = writeln!(md, "- `{}`: <{}>", a.file, a.url);
+    }
+    if !missing.is_empty() {
+        let names: Vec<&str> = missing.iter().map(|a| a.file).collect();
+        println!(
+            "anchors: {} not in {} (download them from the URLs in the report to measure them)",
+            names.join(", "),
+            dir.display()
+        );
+    }
     Ok(md)
 }

@@ -71,7 +71,11 @@ fn run_reference(args: &FpgaArgs, top: &str, boards: &[Board]) -> Result<()> {
     let sources = Sources::in_workspace();
     let mut failed = Vec::new();
     for &board in boards {
-        stage(&format!("{} {top} (another core)", board.title()));
+        stage(&format!(
+            "{} {} (another core)",
+            board.title(),
+            reference.name()
+        ));
         let built = fpga::reference::build(&reference, board, args.seed, &sources, &out)
             .with_context(|| format!("building {top} for {}", board.name()))?;
         let (ins, outs) = built.wrapper_bits();
@@ -79,12 +83,12 @@ fn run_reference(args: &FpgaArgs, top: &str, boards: &[Board]) -> Result<()> {
             "{top} in the wrapper: {ins} input and {outs} output bits in its registers (about \
              {} logic cells of the figures below, and {} more for the fold)",
             ins + outs,
-            outs.div_ceil(12)
+            outs.div_ceil(4) + 32
         );
         let outcome = built.outcome;
         print!("{}", fpga::summary(&outcome));
         if outcome.placed.is_none() {
-            failed.push(fpga::reference::dir_name(board, top, args.seed));
+            failed.push(fpga::reference::dir_name(board, &reference, args.seed));
         }
     }
     if !failed.is_empty() {
