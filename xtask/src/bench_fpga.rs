@@ -387,7 +387,7 @@ pub fn anchors() -> Result<String> {
     let sources = Sources::in_workspace();
     let mut md = String::from("## The anchors through this flow\n\n");
     md.push_str(
-        "Published cores the FPGA goals were set against, as their projects generated them, each in the wrapper of `fpga::reference` (its inputs from an LFSR, its outputs folded into the core alone's pins) through the same flow as ours (`synth_ice40 -abc9`, `-dsp` on UP5K; nextpnr-ice40, three placer seeds), held to the boards' goals. The logic cells include the wrapper's registers (one per input and output bit, and the fold).\n\n",
+        "Published cores the FPGA goals were set against, as their projects generated them, each in the wrapper of `fpga::reference` (every input bit from a register of its own fed by an LFSR, the outputs into a signature register whose two bits are the core alone's pins) through the same flow as ours (`synth_ice40 -abc9`, `-dsp` on UP5K; nextpnr-ice40, three placer seeds), held to the boards' goals. The logic cells include the wrapper's registers (one per input and output bit, and the fold).\n\n",
     );
     md.push_str(
         "| core | configuration | board | LUT4 | FF | RAM | DSP | logic cells | wrapper bits (in / out) | Fmax by seed (MHz) | goal (MHz) |\n|---|---|---|---:|---:|---:|---:|---|---|---|---:|\n",
@@ -402,7 +402,9 @@ pub fn anchors() -> Result<String> {
                 "| {} | {} | | | | | | netlist not present: `{}` | | | |",
                 a.name,
                 a.config,
-                file.display()
+                file.strip_prefix(crate::workspace_root())
+                    .unwrap_or(&file)
+                    .display()
             );
             continue;
         }
@@ -459,11 +461,13 @@ pub fn anchors() -> Result<String> {
             );
         }
     }
+    let shown = dir
+        .strip_prefix(crate::workspace_root())
+        .unwrap_or(&dir)
+        .display();
     let _ = writeln!(
         md,
-        "\nReproduce: put the netlists in `{}` and run `cargo xtask bench --only anchors`; one: `cargo xtask fpga --board up5k --reference {}/Up5kPerf.v --top Up5kPerf --seed 1`. The netlists, at the commits measured:\n",
-        dir.display(),
-        dir.display()
+        "\nReproduce: put the netlists in `{shown}` and run `cargo xtask bench --only anchors`; one: `cargo xtask fpga --board up5k --reference {shown}/Up5kPerf.v --top Up5kPerf --seed 1`. The netlists, at the commits measured:\n"
     );
     for a in &ANCHORS {
         let _ = writeln!(md, "- `{}`: <{}>", a.file, a.url);
