@@ -33,8 +33,9 @@ pub enum Design {
     /// (`fpga/probe/`, docs/fpga.md), fed by an LFSR.
     Probe(Stage),
     /// Another core, as published, in a generated wrapper that feeds its inputs from an LFSR
-    /// and folds its outputs into two pins (`fpga::reference`): what the same flow makes of
-    /// the cores our goals were set against. Its Verilog is the caller's.
+    /// and takes its outputs into a signature register on two pins (`fpga::reference`): what
+    /// the same flow makes of the cores our goals were set against. Its Verilog is the
+    /// caller's.
     Reference,
 }
 

@@ -2,7 +2,7 @@
 //! packed into bitstreams, with the program image the boards load from their SPI flash.
 //! Outputs go to `target/fpga/`; see docs/fpga.md.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use fpga::{Board, Design, Sources, Stage, Target};
@@ -36,7 +36,7 @@ pub struct FpgaArgs {
     #[arg(long, value_name = "STAGE", conflicts_with_all = ["core", "vision", "vision_unit"])]
     probe: Option<Stage>,
     /// Build another core instead of the SoC: its Verilog file(s), in a generated wrapper that
-    /// drives its inputs from an LFSR and folds its outputs into two pins, held to the board's
+    /// drives its inputs from an LFSR and takes its outputs into two pins, held to the board's
     /// Fmax goal (how the same flow does with the cores the goals were set against;
     /// docs/fpga.md). Needs --top.
     #[arg(long, value_name = "FILE", num_args = 1.., requires = "top",
@@ -55,7 +55,13 @@ pub struct FpgaArgs {
 }
 
 /// `--reference`: another core on each board; fails only when it cannot be placed.
-fn run_reference(args: &FpgaArgs, top: &str, boards: &[Board]) -> Result<()> {
+fn run_reference(
+    args: &FpgaArgs,
+    top: &str,
+    boards: &[Board],
+    sources: &Sources,
+    out: &Path,
+) -> Result<()> {
     for f in &args.reference {
         if !f.is_file() {
             bail!("--reference: no file {}", f.display());
@@ -67,8 +73,6 @@ fn run_reference(args: &FpgaArgs, top: &str, boards: &[Board]) -> Result<()> {
         clock: args.clock_port.clone(),
         reset: args.reset_port.clone(),
     };
-    let out = out_dir();
-    let sources = Sources::in_workspace();
     let mut failed = Vec::new();
     for &board in boards {
         stage(&format!(
@@ -76,14 +80,13 @@ fn run_reference(args: &FpgaArgs, top: &str, boards: &[Board]) -> Result<()> {
             board.title(),
             reference.name()
         ));
-        let built = fpga::reference::build(&reference, board, args.seed, &sources, &out)
+        let built = fpga::reference::build(&reference, board, args.seed, sources, out)
             .with_context(|| format!("building {top} for {}", board.name()))?;
         let (ins, outs) = built.wrapper_bits();
         println!(
             "{top} in the wrapper: {ins} input and {outs} output bits in its registers (about \
-             {} logic cells of the figures below, and {} more for the fold)",
-            ins + outs,
-            outs.div_ceil(4) + 32
+             {} logic cells of the figures below are the wrapper's)",
+            built.wrapper_cells()
         );
         let outcome = built.outcome;
         print!("{}", fpga::summary(&outcome));
@@ -117,7 +120,7 @@ pub fn run(args: FpgaArgs) -> Result<()> {
     let out = out_dir();
     let sources = Sources::in_workspace();
     if let Some(top) = &args.top {
-        return run_reference(&args, top, &boards);
+        return run_reference(&args, top, &boards, &sources, &out);
     }
     let mut failed = Vec::new();
     for board in boards {
